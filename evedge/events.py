@@ -1,0 +1,233 @@
+"""The one event type of the project, its sensor size and its containers.
+
+Events are a numpy structured array with the field names and types of tonic's
+``events_struct``: ``x`` and ``y`` (int16, pixel column and row, images are
+indexed ``[y, x]``), ``t`` (int64, microseconds) and ``p`` (bool, True = ON,
+brightness up). Everything in evedge takes and returns this array; numba
+kernels receive its columns as plain contiguous 1-D arrays.
+
+References
+----------
+.. [1] G. Lenz et al., "Tonic: event-based datasets and transformations",
+       https://github.com/neuromorphs/tonic (``tonic.io.events_struct``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: The event dtype, identical to ``tonic.io.events_struct``.
+EVENT_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", bool)])
+
+
+@dataclass(frozen=True)
+class SensorSize:
+    """Sensor size in pixels: ``width`` columns (x) by ``height`` rows (y)."""
+
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise TypeError(f"SensorSize.{name} must be an integer, got {value!r}")
+            if not 1 <= int(value) <= 32767:
+                raise ValueError(f"SensorSize.{name} must be in 1..32767, got {value}")
+            object.__setattr__(self, name, int(value))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image shape ``(height, width)``."""
+        return (self.height, self.width)
+
+    def as_tonic(self) -> tuple[int, int, int]:
+        """tonic's ``sensor_size`` convention ``(width, height, polarities)``."""
+        return (self.width, self.height, 2)
+
+    @classmethod
+    def parse(cls, text: str) -> "SensorSize":
+        """Parse ``"240x180"`` or a preset name (``dvs128``, ``davis240``, ``davis346``)."""
+        key = text.strip().lower()
+        if key in SENSOR_PRESETS:
+            return SENSOR_PRESETS[key]
+        parts = key.split("x")
+        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+            raise ValueError(
+                f"sensor size {text!r}: expected WIDTHxHEIGHT (e.g. 240x180) or one of "
+                f"{sorted(SENSOR_PRESETS)}"
+            )
+        return cls(int(parts[0]), int(parts[1]))
+
+
+SENSOR_PRESETS = {
+    "dvs128": SensorSize(128, 128),
+    "davis240": SensorSize(240, 180),
+    "davis346": SensorSize(346, 260),
+}
+
+
+def make_events(x, y, t, p) -> np.ndarray:
+    """Build an event array from columns.
+
+    Parameters
+    ----------
+    x, y : array_like of int
+        Pixel column and row.
+    t : array_like of int
+        Timestamps in microseconds (integers; use :func:`seconds_to_us` first
+        for float seconds).
+    p : array_like
+        Polarity: bool, {0, 1} or {-1, +1}; anything > 0 is ON.
+
+    Returns
+    -------
+    numpy.ndarray
+        Structured array of dtype :data:`EVENT_DTYPE`.
+    """
+    cols = [np.asarray(c) for c in (x, y, t, p)]
+    n = cols[0].shape[0] if cols[0].ndim else 1
+    for name, c in zip("xytp", cols):
+        if c.ndim != 1 or c.shape[0] != n:
+            raise ValueError(f"make_events: column {name!r} must be 1-D of length {n}, got shape {c.shape}")
+        if c.dtype.kind == "f" and not np.all(np.isfinite(c)):
+            bad = int(np.flatnonzero(~np.isfinite(c))[0])
+            raise ValueError(f"make_events: column {name!r} has a non-finite value at index {bad}")
+        if name != "p" and c.dtype.kind == "f" and np.any(c != np.round(c)):
+            bad = int(np.flatnonzero(c != np.round(c))[0])
+            raise ValueError(f"make_events: column {name!r} must hold integers, index {bad} is {c[bad]}")
+    out = np.empty(n, dtype=EVENT_DTYPE)
+    for name in "xy":
+        c = cols["xy".index(name)]
+        if c.size and (c.min() < -32768 or c.max() > 32767):
+            raise ValueError(f"make_events: column {name!r} out of int16 range")
+        out[name] = c
+    out["t"] = cols[2]
+    out["p"] = cols[3] > 0
+    return out
+
+
+def seconds_to_us(t_s) -> np.ndarray:
+    """Convert seconds (float) to int64 microseconds, rounding to nearest."""
+    t_s = np.asarray(t_s, dtype=np.float64)
+    if not np.all(np.isfinite(t_s)):
+        bad = int(np.flatnonzero(~np.isfinite(t_s))[0])
+        raise ValueError(f"timestamps: non-finite value at index {bad}")
+    return np.rint(t_s * 1e6).astype(np.int64)
+
+
+def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *, name: str = "events") -> np.ndarray:
+    """Check an event array and return it unchanged.
+
+    Raises
+    ------
+    TypeError
+        When ``events`` is not a structured array of :data:`EVENT_DTYPE`.
+    ValueError
+        When coordinates fall outside ``sensor_size`` or timestamps decrease
+        (call :func:`sort_events` to sort explicitly). The message names
+        ``name`` and the first offending index.
+    """
+    if not isinstance(events, np.ndarray) or events.dtype != EVENT_DTYPE:
+        got = getattr(events, "dtype", type(events).__name__)
+        raise TypeError(f"{name}: expected a structured array of dtype {EVENT_DTYPE}, got {got}")
+    if events.ndim != 1:
+        raise ValueError(f"{name}: expected a 1-D event array, got shape {events.shape}")
+    if events.size == 0:
+        return events
+    if sensor_size is not None:
+        for axis, limit in (("x", sensor_size.width), ("y", sensor_size.height)):
+            col = events[axis]
+            bad = np.flatnonzero((col < 0) | (col >= limit))
+            if bad.size:
+                i = int(bad[0])
+                raise ValueError(
+                    f"{name}: event {i} has {axis}={int(col[i])} outside the sensor "
+                    f"({sensor_size.width}x{sensor_size.height}); {bad.size} events out of range"
+                )
+    dec = np.flatnonzero(np.diff(events["t"]) < 0)
+    if dec.size:
+        i = int(dec[0]) + 1
+        raise ValueError(
+            f"{name}: timestamps are not sorted: event {i} has t={int(events['t'][i])} us < "
+            f"t={int(events['t'][i - 1])} us of event {i - 1} ({dec.size} decreases); "
+            f"use evedge.events.sort_events to sort explicitly"
+        )
+    return events
+
+
+def sort_events(events: np.ndarray) -> np.ndarray:
+    """Return the events sorted by time (stable: equal timestamps keep their order)."""
+    return events[np.argsort(events["t"], kind="stable")]
+
+
+@dataclass
+class Frames:
+    """A stack of images with timestamps.
+
+    Attributes
+    ----------
+    t_us : numpy.ndarray
+        int64 timestamps in microseconds, shape (n,).
+    images : numpy.ndarray
+        Shape (n, height, width): grey frames (uint8 or float in [0, 1]) or
+        boolean edge maps.
+    """
+
+    t_us: np.ndarray
+    images: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.t_us = np.asarray(self.t_us, dtype=np.int64)
+        self.images = np.asarray(self.images)
+        if self.t_us.ndim != 1 or self.images.ndim != 3 or self.images.shape[0] != self.t_us.shape[0]:
+            raise ValueError(
+                f"Frames: t_us of shape {self.t_us.shape} and images of shape {self.images.shape} "
+                "do not match (expected (n,) and (n, height, width))"
+            )
+
+    def __len__(self) -> int:
+        return int(self.t_us.shape[0])
+
+
+@dataclass
+class Recording:
+    """Events with everything that may come with them.
+
+    Attributes
+    ----------
+    events : numpy.ndarray
+        Events of dtype :data:`EVENT_DTYPE`, sorted by time.
+    sensor_size : SensorSize
+    frames : Frames or None
+        Grey frames (real APS frames, or the simulator's clean renders).
+    truth : numpy.ndarray or None
+        Per-event ground truth (structured, one row per event), from the simulator.
+    edges : Frames or None
+        Exact edge maps (boolean images) with their timestamps, from the simulator.
+    metadata : dict
+        JSON-serialisable facts: source file, how the sensor size was found, scene, versions.
+    """
+
+    events: np.ndarray
+    sensor_size: SensorSize
+    frames: Frames | None = None
+    truth: np.ndarray | None = None
+    edges: Frames | None = None
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        validate_events(self.events, self.sensor_size)
+        if self.truth is not None and self.truth.shape != self.events.shape:
+            raise ValueError(
+                f"Recording: truth has {self.truth.shape[0]} rows but there are {self.events.shape[0]} events"
+            )
+        for label, stack in (("frames", self.frames), ("edges", self.edges)):
+            if stack is not None and stack.images.shape[1:] != self.sensor_size.shape:
+                raise ValueError(
+                    f"Recording: {label} are {stack.images.shape[2]}x{stack.images.shape[1]} but the "
+                    f"sensor is {self.sensor_size.width}x{self.sensor_size.height}"
+                )
