@@ -5,6 +5,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+as_root() {  # run a command as root, or return 1 when we cannot
+  if [ "$(id -u)" = "0" ]; then sh -c "$1"
+  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then sudo sh -c "$1"
+  else return 1; fi
+}
+
 DEBS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libxrender1"
 missing=""
 if command -v dpkg-query >/dev/null 2>&1; then
@@ -14,13 +20,8 @@ if command -v dpkg-query >/dev/null 2>&1; then
 fi
 if [ -n "$missing" ]; then
   cmd="apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends$missing"
-  if [ "$(id -u)" = "0" ]; then
-    echo "setup: installing Debian packages for offscreen rendering:$missing"
-    sh -c "$cmd"
-  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
-    echo "setup: installing Debian packages for offscreen rendering (sudo):$missing"
-    sudo sh -c "$cmd"
-  else
+  echo "setup: installing Debian packages for offscreen rendering:$missing"
+  if ! as_root "$cmd"; then
     echo "setup: these Debian packages are missing and I am not root:$missing" >&2
     echo "setup: run as root:  $cmd" >&2
     echo "setup: continuing; 3-D rendering will fail until they are installed." >&2
@@ -33,10 +34,12 @@ if ! "$PY" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
   exit 1
 fi
 if [ ! -x .venv/bin/python ]; then
-  if ! "$PY" -m venv .venv; then
-    echo "setup: '$PY -m venv' failed; on Debian install it with: apt-get install -y python3-venv" >&2
-    exit 1
+  if ! "$PY" -c 'import ensurepip, venv' 2>/dev/null; then
+    venv_cmd="apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends python3-venv"
+    echo "setup: Python's venv module is missing; installing python3-venv"
+    as_root "$venv_cmd" || { echo "setup: not root; run as root:  $venv_cmd" >&2; exit 1; }
   fi
+  "$PY" -m venv .venv || { rm -rf .venv; echo "setup: '$PY -m venv .venv' failed" >&2; exit 1; }
 fi
 stamp=.venv/.evedge-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
