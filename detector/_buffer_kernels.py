@@ -1,0 +1,69 @@
+"""numba kernels of the event buffer (see :mod:`evedge.detector.buffer`)."""
+
+import numpy as np
+from numba import njit
+
+_NEVER = np.iinfo(np.int64).min
+
+
+@njit(cache=True)
+def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, width, height, tau_us, causal):
+    """Mark support for events ``n_old..`` of the arrays (events ``0..n_old`` are carried over).
+
+    Arrays ``x, y, t, p, prev, supported`` hold the unreleased events, the first of which
+    has global index ``base_g``. ``last_t`` and ``head_g`` are per pixel and polarity
+    (index ``(p * height + y) * width + x``): the latest timestamp and the global index of
+    the latest event there. ``prev`` chains the events of one pixel and polarity.
+    Returns nothing; updates ``supported``, ``prev``, ``last_t``, ``head_g`` in place.
+    """
+    n = x.shape[0]
+    for k in range(n_old, n):
+        xk = x[k]
+        yk = y[k]
+        tk = t[k]
+        plane = p[k] * height
+        lo = tk - tau_us
+        for dy in range(-1, 2):
+            yy = yk + dy
+            if yy < 0 or yy >= height:
+                continue
+            for dx in range(-1, 2):
+                if dx == 0 and dy == 0:
+                    continue
+                xx = xk + dx
+                if xx < 0 or xx >= width:
+                    continue
+                q = (plane + yy) * width + xx
+                lt = last_t[q]
+                if lt != _NEVER and lt >= lo:
+                    # a neighbour fired within tau before (or at) this event
+                    supported[k] = True
+                    if not causal:
+                        # ...and this event supports every unreleased event of that
+                        # neighbour within tau before it
+                        g = head_g[q]
+                        while g >= base_g:
+                            j = g - base_g
+                            if t[j] < lo:
+                                break
+                            supported[j] = True
+                            g = prev[j]
+        pix = (plane + yk) * width + xk
+        prev[k] = head_g[pix]
+        head_g[pix] = base_g + k
+        last_t[pix] = tk
+
+
+@njit(cache=True)
+def _n_decided(t, supported, t_latest, tau_us, causal):
+    """Length of the leading run of events whose fate is known by time ``t_latest``."""
+    n = t.shape[0]
+    if causal:
+        return n
+    k = 0
+    while k < n:
+        # an unsupported event may still be supported by an event up to t + tau
+        if not supported[k] and t[k] + tau_us >= t_latest:
+            break
+        k += 1
+    return k

@@ -1,0 +1,309 @@
+"""numba kernels of the intra-pixel-area lifetime estimator (see :mod:`evedge.detector.intra`).
+
+Points of a window are past events in coordinates local to the current event:
+``dx, dy`` (pixel offsets) and ``dt`` (time minus the current time, us). The
+current event itself is the origin and is not stored among them.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+_NEVER = np.iinfo(np.int64).min
+
+
+@njit(cache=True)
+def _mix64(z):
+    """splitmix64 finaliser (Steele, Lea & Flood 2014) on a uint64."""
+    z = z + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(cache=True)
+def _event_key(seed, g):
+    """Random stream key of the event with global index ``g``: independent of chunking."""
+    return _mix64(np.uint64(seed) ^ _mix64(np.uint64(g)))
+
+
+@njit(cache=True)
+def _draw(key, counter):
+    """The ``counter``-th uint64 of the stream ``key``."""
+    return _mix64(key + np.uint64(counter))
+
+
+@njit(cache=True)
+def _two_means(dt, n, label):
+    """1-D 2-means of the past points and the current event (dt = 0).
+
+    Initial centroids: the window minimum and the current time. A point at equal
+    distance from both centroids joins the current event's cluster. On return
+    ``label[i]`` is 1 for the points in the current event's cluster, else 0.
+    """
+    c0 = 0.0
+    for i in range(n):
+        if dt[i] < c0:
+            c0 = dt[i]
+    c1 = 0.0
+    if c0 == c1:
+        # every timestamp equals the current one: a single cluster
+        for i in range(n):
+            label[i] = 1
+        return
+    for i in range(n):
+        label[i] = -1
+    cur = -1
+    for _ in range(100):
+        changed = False
+        s0 = 0.0
+        n0 = 0
+        s1 = 0.0
+        n1 = 0
+        lc = 1 if abs(0.0 - c1) <= abs(0.0 - c0) else 0
+        if lc != cur:
+            changed = True
+            cur = lc
+        if lc == 1:
+            n1 += 1
+        else:
+            n0 += 1
+        for i in range(n):
+            v = dt[i]
+            li = 1 if abs(v - c1) <= abs(v - c0) else 0
+            if li != label[i]:
+                changed = True
+                label[i] = li
+            if li == 1:
+                s1 += v
+                n1 += 1
+            else:
+                s0 += v
+                n0 += 1
+        if not changed:
+            break
+        if n0 > 0:
+            c0 = s0 / n0
+        if n1 > 0:
+            c1 = s1 / n1
+    for i in range(n):
+        label[i] = 1 if label[i] == cur else 0
+
+
+@njit(cache=True)
+def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
+            min_points, min_inliers, inl_best, inl_tmp, idx):
+    """RANSAC plane ``dt = a dx + b dy`` through the current event, then least squares.
+
+    Candidates pass through the current event and two distinct past points of the
+    kept cluster (``label == 1``), drawn with :func:`_draw` (counters 2k, 2k+1 at
+    trial k); samples collinear with the current event are skipped (they still use
+    up a trial). Residual of a point: ``max(0, |dt - a dx - b dy| - delta (|a| + |b|))``
+    (closest point of its intra-pixel square); inlier when
+    ``<= thr_us + thr_rel * sqrt(a^2 + b^2)``. Most inliers wins, ties go to the
+    smaller sum of inlier residuals, then to the earlier trial. With
+    ``stop_prob < 1`` the number of trials shrinks adaptively as in
+    scikit-image's ``ransac``. The winner is refitted by least squares on its
+    inliers (plane still through the current event).
+
+    Returns ``(ok, a, b, n_inliers)``; ``n_inliers`` counts the current event.
+    ``inl_best[i]`` marks the inlier past points.
+    """
+    m = 0
+    for i in range(n):
+        inl_best[i] = False
+        if label[i] == 1:
+            idx[m] = i
+            m += 1
+    if m < 2 or m + 1 < min_points:
+        return False, np.nan, np.nan, 0
+    best_n = 0
+    best_cost = np.inf
+    best_a = np.nan
+    best_b = np.nan
+    trials = max_trials
+    k = 0
+    um = np.uint64(m)
+    um1 = np.uint64(m - 1)
+    while k < trials:
+        pi = np.int64(_draw(key, 2 * k) % um)
+        pj = np.int64(_draw(key, 2 * k + 1) % um1)
+        if pj >= pi:
+            pj += 1
+        k += 1
+        i = idx[pi]
+        j = idx[pj]
+        det = dx[i] * dy[j] - dx[j] * dy[i]
+        if det == 0.0:
+            continue
+        a = (dt[i] * dy[j] - dt[j] * dy[i]) / det
+        b = (dx[i] * dt[j] - dx[j] * dt[i]) / det
+        slack = delta * (abs(a) + abs(b))
+        thr = thr_us + thr_rel * math.sqrt(a * a + b * b)
+        cnt = 1
+        cost = 0.0
+        for q in range(m):
+            u = idx[q]
+            r = abs(dt[u] - (a * dx[u] + b * dy[u])) - slack
+            if r < 0.0:
+                r = 0.0
+            if r <= thr:
+                inl_tmp[u] = True
+                cnt += 1
+                cost += r
+            else:
+                inl_tmp[u] = False
+        if cnt > best_n or (cnt == best_n and cost < best_cost):
+            best_n = cnt
+            best_cost = cost
+            best_a = a
+            best_b = b
+            for q in range(m):
+                u = idx[q]
+                inl_best[u] = inl_tmp[u]
+            if stop_prob < 1.0:
+                w = (cnt - 1) / m
+                if w >= 1.0:
+                    trials = k
+                else:
+                    denom = 1.0 - w * w
+                    if denom < 1.0:
+                        need = math.ceil(math.log(1.0 - stop_prob) / math.log(denom))
+                        if need < trials:
+                            trials = need
+    if best_n < min_inliers or best_n == 0:
+        return False, np.nan, np.nan, best_n
+    sxx = 0.0
+    sxy = 0.0
+    syy = 0.0
+    sxt = 0.0
+    syt = 0.0
+    for q in range(m):
+        u = idx[q]
+        if inl_best[u]:
+            sxx += dx[u] * dx[u]
+            sxy += dx[u] * dy[u]
+            syy += dy[u] * dy[u]
+            sxt += dx[u] * dt[u]
+            syt += dy[u] * dt[u]
+    det = sxx * syy - sxy * sxy
+    a = best_a
+    b = best_b
+    if det > 0.0:
+        a = (sxt * syy - syt * sxy) / det
+        b = (syt * sxx - sxt * sxy) / det
+    if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
+        # a flat plane (all inliers at the current time): no finite lifetime
+        return False, np.nan, np.nan, best_n
+    return True, a, b, best_n
+
+
+@njit(cache=True)
+def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_us, thr_rel,
+                  max_trials, stop_prob, min_points, min_inliers, seed,
+                  out_lt, out_vx, out_vy, out_valid):
+    """SAE update, window gathering, 2-means and RANSAC for each event in order.
+
+    ``sae`` is the flat SAE (``(plane * height + y) * width + x``), updated in place;
+    ``g0`` is the global index of the first event (seeds its random stream).
+    Flow is written in px/s.
+    """
+    side = 2 * half + 1
+    nn = side * side
+    dx = np.empty(nn)
+    dy = np.empty(nn)
+    dt = np.empty(nn)
+    label = np.empty(nn, np.int8)
+    inl_best = np.zeros(nn, np.bool_)
+    inl_tmp = np.zeros(nn, np.bool_)
+    idx = np.empty(nn, np.int64)
+    for k in range(x.shape[0]):
+        xk = x[k]
+        yk = y[k]
+        tk = t[k]
+        base = (p[k] if per_pol else 0) * height * width
+        sae[base + yk * width + xk] = tk
+        n = 0
+        for oy in range(-half, half + 1):
+            yy = yk + oy
+            if yy < 0 or yy >= height:
+                continue
+            row = base + yy * width
+            for ox in range(-half, half + 1):
+                if ox == 0 and oy == 0:
+                    continue
+                xx = xk + ox
+                if xx < 0 or xx >= width:
+                    continue
+                v = sae[row + xx]
+                if v == _NEVER:
+                    continue
+                dx[n] = ox
+                dy[n] = oy
+                dt[n] = float(v - tk)
+                n += 1
+        _two_means(dt, n, label)
+        ok, a, b, _ = _ransac(dx, dy, dt, label, n, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
+                              max_trials, stop_prob, min_points, min_inliers, inl_best, inl_tmp, idx)
+        if ok:
+            g2 = a * a + b * b
+            out_lt[k] = math.sqrt(g2)
+            out_vx[k] = a / g2 * 1e6
+            out_vy[k] = b / g2 * 1e6
+            out_valid[k] = True
+        else:
+            out_lt[k] = np.nan
+            out_vx[k] = np.nan
+            out_vy[k] = np.nan
+            out_valid[k] = False
+
+
+@njit(cache=True)
+def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                 min_inliers, out_a, out_b, out_ok, out_inl):
+    """:func:`_ransac` on flat windows ``win`` (k * side * side, NaN = never fired).
+
+    Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
+    inlier mask per window cell (the centre, the current event, is an inlier when ok).
+    """
+    nn = side * side
+    c = nn // 2
+    half = side // 2
+    dx = np.empty(nn)
+    dy = np.empty(nn)
+    dt = np.empty(nn)
+    cell = np.empty(nn, np.int64)
+    label = np.empty(nn, np.int8)
+    inl_best = np.zeros(nn, np.bool_)
+    inl_tmp = np.zeros(nn, np.bool_)
+    idx = np.empty(nn, np.int64)
+    nw = win.shape[0] // nn
+    for w in range(nw):
+        off = w * nn
+        tc = win[off + c]
+        n = 0
+        for q in range(nn):
+            if q == c:
+                continue
+            v = win[off + q]
+            if math.isnan(v):
+                continue
+            dx[n] = q % side - half
+            dy[n] = q // side - half
+            dt[n] = v - tc
+            cell[n] = q
+            n += 1
+        _two_means(dt, n, label)
+        ok, a, b, _ = _ransac(dx, dy, dt, label, n, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
+                              max_trials, stop_prob, min_points, min_inliers, inl_best, inl_tmp, idx)
+        out_ok[w] = ok
+        out_a[w] = a
+        out_b[w] = b
+        for q in range(nn):
+            out_inl[off + q] = False
+        if ok:
+            out_inl[off + c] = True
+            for i in range(n):
+                if inl_best[i]:
+                    out_inl[off + cell[i]] = True

@@ -1,0 +1,171 @@
+"""Event buffer: the paper's noise filter (Lee, Kim & Kim 2019, section 2.2).
+
+An event is kept when an event of the same polarity fired at one of its 8
+neighbouring pixels (radius 1; the pixel itself does not count) within
+``tau_min_us`` of it. Isolated events are noise.
+
+Two forms:
+
+``buffered`` (default)
+    Support may come from before *or after* the event (``|t_j - t_i| <= tau_min``),
+    so the first event of an edge, which has no past neighbour yet, is kept once
+    its neighbours fire. An event therefore waits at most ``tau_min_us`` before
+    its fate is known; the output stays in time order and its latency is bounded
+    by ``tau_min_us`` (the buffer the paper's name refers to).
+``causal``
+    Support from earlier events of the stream only (``t_i - tau_min <= t_j``,
+    ``j`` before ``i``); no latency.
+
+Equal timestamps: two events with the same timestamp at neighbouring pixels
+support each other in the buffered form; in the causal form only the one later
+in the stream is supported by the other (stream order decides).
+
+References
+----------
+.. [1] S. Lee, H. Kim, H. J. Kim, "Edge Detection for Event Cameras using
+       Intra-pixel-area Events", BMVC 2019, section 2.2 (tau_min = 0.01 s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from evedge.events import EVENT_DTYPE
+
+from ._buffer_kernels import _buffer_scan, _n_decided
+from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
+
+_MODES = ("buffered", "causal")
+
+
+@dataclass(frozen=True)
+class BufferParams:
+    """Parameters of the event buffer.
+
+    Parameters
+    ----------
+    tau_min_us : int
+        Support window in microseconds (paper: 0.01 s).
+    mode : {"buffered", "causal"}
+        Support from past and future (default, latency <= ``tau_min_us``) or past only.
+    """
+
+    tau_min_us: int = 10_000
+    mode: str = "buffered"
+
+    def __post_init__(self) -> None:
+        check_positive("BufferParams", "tau_min_us", self.tau_min_us, integer=True)
+        object.__setattr__(self, "tau_min_us", int(self.tau_min_us))
+        if self.mode not in _MODES:
+            raise ValueError(f"BufferParams.mode must be one of {_MODES}, got {self.mode!r}")
+
+
+def _check_params(params) -> BufferParams:
+    if params is None:
+        return BufferParams()
+    if not isinstance(params, BufferParams):
+        raise TypeError(f"params: expected BufferParams, got {type(params).__name__}")
+    return params
+
+
+class EventBuffer:
+    """Streaming event buffer.
+
+    Parameters
+    ----------
+    sensor_size : SensorSize or (width, height)
+    params : BufferParams, optional
+
+    Notes
+    -----
+    :meth:`process` returns the events whose fate is known, kept ones only, in
+    time order; in the buffered form an event is held until it is supported or
+    until an event later than ``t + tau_min_us`` arrives. :meth:`flush` releases
+    the rest at the end of the stream. The concatenation of all outputs equals
+    ``events[filter_events(events, ...)]`` whatever the chunking.
+    """
+
+    def __init__(self, sensor_size, params: BufferParams | None = None) -> None:
+        self.sensor_size = check_sensor_size(sensor_size)
+        self.params = _check_params(params)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every event seen."""
+        w, h = self.sensor_size.width, self.sensor_size.height
+        self._last_t = np.full(2 * w * h, NEVER_US, dtype=np.int64)
+        self._head_g = np.full(2 * w * h, -1, dtype=np.int64)
+        self._pending = np.empty(0, dtype=EVENT_DTYPE)
+        self._prev = np.empty(0, dtype=np.int64)
+        self._supported = np.empty(0, dtype=bool)
+        self._base_g = 0
+        self._last_time: int | None = None
+
+    @property
+    def n_pending(self) -> int:
+        """Events received but not yet released or dropped."""
+        return int(self._pending.shape[0])
+
+    def process(self, events: np.ndarray) -> np.ndarray:
+        """Take a time-sorted chunk; return the kept events whose fate is now known."""
+        check_events(events, self.sensor_size)
+        check_not_before(events, self._last_time)
+        if events.size == 0:
+            return events[:0].copy()
+        n_old = self._pending.shape[0]
+        allev = np.concatenate([self._pending, events])
+        x, y, t, p = columns(allev)
+        prev = np.concatenate([self._prev, np.full(events.shape[0], -1, dtype=np.int64)])
+        supported = np.concatenate([self._supported, np.zeros(events.shape[0], dtype=bool)])
+        tau = self.params.tau_min_us
+        causal = self.params.mode == "causal"
+        _buffer_scan(x, y, t, p, prev, supported, n_old, self._base_g, self._last_t, self._head_g,
+                     self.sensor_size.width, self.sensor_size.height, tau, causal)
+        self._last_time = int(t[-1])
+        r = _n_decided(t, supported, self._last_time, tau, causal)
+        out = allev[:r][supported[:r]]
+        self._pending = allev[r:]
+        self._prev = prev[r:]
+        self._supported = supported[r:]
+        self._base_g += r
+        return out
+
+    def flush(self) -> np.ndarray:
+        """End of stream: release the kept events still waiting for support."""
+        out = self._pending[self._supported]
+        self._base_g += self._pending.shape[0]
+        self._pending = self._pending[:0]
+        self._prev = self._prev[:0]
+        self._supported = self._supported[:0]
+        return out
+
+
+def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None = None) -> np.ndarray:
+    """One-shot event buffer.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Time-sorted events of dtype :data:`evedge.events.EVENT_DTYPE`.
+    sensor_size : SensorSize or (width, height)
+    params : BufferParams, optional
+        Defaults: ``tau_min_us=10_000``, buffered form.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean mask, True for the events kept.
+    """
+    sensor_size = check_sensor_size(sensor_size)
+    params = _check_params(params)
+    check_events(events, sensor_size)
+    w, h = sensor_size.width, sensor_size.height
+    x, y, t, p = columns(events)
+    n = events.shape[0]
+    supported = np.zeros(n, dtype=bool)
+    _buffer_scan(x, y, t, p, np.full(n, -1, dtype=np.int64), supported, 0, 0,
+                 np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
+                 w, h, params.tau_min_us, params.mode == "causal")
+    return supported

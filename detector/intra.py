@@ -1,0 +1,330 @@
+"""Lifetime and normal flow by RANSAC plane fitting with intra-pixel-area events.
+
+For each event (normally one that passed :mod:`evedge.detector.buffer`):
+
+1. the event is written into the Surface of Active Events of its polarity
+   (:mod:`evedge.detector.sae`; ``per_polarity=False`` shares one surface);
+2. the ``N x N`` window of that surface centred on it gives the points
+   ``(dx, dy, dt)`` in coordinates local to the event (``dt = t - t_e`` in us);
+   pixels that never fired, and pixels outside the sensor, are not points;
+3. 2-means on the window's timestamps (the current event included), initial
+   centroids the window minimum and the current time, keeps the cluster holding
+   the current event; a timestamp equidistant from both centroids joins that
+   cluster, and a window whose timestamps all equal the current one is one cluster;
+4. RANSAC: candidate plane ``t = t_e + a (x - x_e) + b (y - y_e)`` through the
+   current event and two distinct random past points of the kept cluster
+   (collinear samples skipped); residual of a point is the time distance from its
+   intra-pixel square (half-size ``delta_px``) to the plane, in closed form
+   ``max(0, |dt - a dx - b dy| - delta (|a| + |b|))`` (we use this time residual in
+   microseconds, not the paper's normalised ``|n^T z - 1| / ||n||^2``, which only
+   rescales it per candidate); inlier when the residual is at most
+   ``inlier_threshold_us + inlier_threshold_rel * sqrt(a^2 + b^2)``; the candidate
+   with most inliers wins (ties: smaller summed residual, then earlier trial);
+5. least-squares refit of ``(a, b)`` on the winner's inliers (plane through the
+   current event; plain residuals: the intra-pixel slack is for voting, a
+   least-squares fit already averages the sub-pixel positions);
+6. ``lifetime_us = sqrt(a^2 + b^2)`` and normal flow ``(a, b) / (a^2 + b^2)``
+   px/us, reported in px/s.
+
+No estimate (``valid`` False, NaN) when the kept cluster has fewer than
+``min_points`` points (current event included) or fewer than 3, when the best
+plane has fewer than ``min_inliers`` inliers (current event included), or when
+the fitted plane is flat (``a = b = 0``: all inliers at the same time as the
+current event, e.g. an edge's tied timestamps; the lifetime would be 0 and the
+speed infinite).
+
+Randomness: trial ``k`` of the event with global index ``g`` (position in the
+stream since the last :meth:`IntraPixelLifetime.reset`) draws
+``splitmix64(key + 2k)`` and ``splitmix64(key + 2k + 1)`` with
+``key = splitmix64(seed ^ splitmix64(g))``, so results do not depend on chunking.
+
+Defaults, chosen by ``benchmarks/sweep_intra_params.py`` (synthetic straight
+edges, 8 speeds 20-5000 px/s x 6 angles, timestamp noise sigma = 5 % of the
+lifetime on every pixel plus 10 % of the pixels replaced by uniform outliers;
+see that script's output in its docstring):
+
+``inlier_threshold_us = 50`` and ``inlier_threshold_rel = 0.1``
+    The tolerance must scale with the lifetime, since timestamp jitter of a real
+    edge is a fraction of the time the edge needs per pixel (sub-pixel position,
+    contrast); the intra-pixel slack ``delta (|a| + |b|)`` already is such a
+    tolerance (0.25-0.35 lifetimes); the relative part adds a little for jitter
+    beyond the pixel area, the absolute part covers the sensor's time resolution.
+``max_trials = 20``, ``stop_probability = 0.99``
+    Two random points per sample, so with 70 % inliers 20 trials fail with
+    probability (1 - 0.49)^20 < 1e-5; adaptive stopping ends clean windows after a
+    few trials (speed).
+``min_points = 5``, ``min_inliers = 5``
+    Three points always fit a plane exactly; two more inliers make the vote mean
+    something while keeping estimates on an edge's first pixels.
+
+References
+----------
+.. [1] S. Lee, H. Kim, H. J. Kim, "Edge Detection for Event Cameras using
+       Intra-pixel-area Events", BMVC 2019, sections 2.3-2.4.
+.. [2] E. Mueggler, C. Forster, N. Baumli, G. Gallego, D. Scaramuzza,
+       "Lifetime Estimation of Events from Dynamic Vision Sensors", ICRA 2015.
+.. [3] M. A. Fischler, R. C. Bolles, "Random Sample Consensus", CACM 1981.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
+from ._intra_kernels import _fit_windows, _intra_stream
+from .result import LIFETIME_DTYPE, empty_lifetimes
+from .sae import SurfaceOfActiveEvents
+
+__all__ = ["IntraParams", "IntraPixelLifetime", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows"]
+
+
+@dataclass(frozen=True)
+class IntraParams:
+    """Parameters of the intra-pixel-area RANSAC lifetime estimator.
+
+    Parameters
+    ----------
+    window_size : int
+        N of the N x N SAE window, odd, >= 3 (paper: 5).
+    delta_px : float
+        Half-size of the intra-pixel area, >= 0 (paper: 0.25; 0 = plain RANSAC).
+    inlier_threshold_us : float
+        Absolute part of the inlier threshold on the intra-pixel residual, > 0.
+    inlier_threshold_rel : float
+        Part of the threshold proportional to the candidate's lifetime, >= 0.
+    max_trials : int
+        Most RANSAC samples per event, >= 1.
+    stop_probability : float
+        In (0, 1]; below 1, RANSAC stops once it has found, with this
+        probability, a sample of inliers (as scikit-image's ``ransac``); 1 = always
+        ``max_trials``.
+    min_points : int
+        Least points in the kept cluster (current event included) to try, >= 3.
+    min_inliers : int
+        Least inliers (current event included) for an estimate, >= 3.
+    seed : int
+        Seed of the counter-based random stream, 0 <= seed < 2**63.
+    per_polarity : bool
+        One SAE per polarity (default) or one shared.
+    """
+
+    window_size: int = 5
+    delta_px: float = 0.25
+    inlier_threshold_us: float = 50.0
+    inlier_threshold_rel: float = 0.1
+    max_trials: int = 20
+    stop_probability: float = 0.99
+    min_points: int = 5
+    min_inliers: int = 5
+    seed: int = 0
+    per_polarity: bool = True
+
+    def __post_init__(self) -> None:
+        own = "IntraParams"
+        check_positive(own, "window_size", self.window_size, integer=True)
+        if self.window_size < 3 or self.window_size % 2 == 0:
+            raise ValueError(f"{own}.window_size must be odd and >= 3, got {self.window_size}")
+        check_positive(own, "delta_px", self.delta_px, allow_zero=True)
+        if self.delta_px >= 0.5:
+            raise ValueError(f"{own}.delta_px must be < 0.5 (half a pixel), got {self.delta_px}")
+        check_positive(own, "inlier_threshold_us", self.inlier_threshold_us)
+        check_positive(own, "inlier_threshold_rel", self.inlier_threshold_rel, allow_zero=True)
+        check_positive(own, "max_trials", self.max_trials, integer=True)
+        check_positive(own, "stop_probability", self.stop_probability)
+        if self.stop_probability > 1:
+            raise ValueError(f"{own}.stop_probability must be in (0, 1], got {self.stop_probability}")
+        for name in ("min_points", "min_inliers"):
+            value = getattr(self, name)
+            check_positive(own, name, value, integer=True)
+            if value < 3:
+                raise ValueError(f"{own}.{name} must be >= 3 (a plane needs 3 points), got {value}")
+            if value > self.window_size**2:
+                raise ValueError(f"{own}.{name} must be <= window_size**2 = {self.window_size**2}, got {value}")
+        check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
+        if self.seed >= 2**63:
+            raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
+        if not isinstance(self.per_polarity, (bool, np.bool_)):
+            raise TypeError(f"{own}.per_polarity must be a bool, got {self.per_polarity!r}")
+        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed"):
+            object.__setattr__(self, name, int(getattr(self, name)))
+        for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+
+def _check_params(params) -> IntraParams:
+    if params is None:
+        return IntraParams()
+    if not isinstance(params, IntraParams):
+        raise TypeError(f"params: expected IntraParams, got {type(params).__name__}")
+    return params
+
+
+class IntraPixelLifetime:
+    """Streaming lifetime estimator (SAE + 2-means + intra-pixel-area RANSAC).
+
+    Parameters
+    ----------
+    sensor_size : SensorSize or (width, height)
+    params : IntraParams, optional
+
+    Notes
+    -----
+    :meth:`process` returns one :data:`~evedge.detector.result.LIFETIME_DTYPE`
+    row per event of the chunk; feeding the events in any chunking gives the
+    same bytes as :func:`estimate_lifetimes`.
+    """
+
+    def __init__(self, sensor_size, params: IntraParams | None = None) -> None:
+        self.sensor_size = check_sensor_size(sensor_size)
+        self.params = _check_params(params)
+        self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
+        self.reset()
+
+    def reset(self) -> None:
+        """Clear the SAE and restart the event counter of the random stream."""
+        self.sae.reset()
+        self._n_seen = 0
+        self._last_time: int | None = None
+
+    def process(self, events: np.ndarray) -> np.ndarray:
+        """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
+        check_events(events, self.sensor_size)
+        check_not_before(events, self._last_time)
+        n = events.shape[0]
+        out = empty_lifetimes(n)
+        if n == 0:
+            return out
+        x, y, t, p = columns(events)
+        lt = np.empty(n)
+        vx = np.empty(n)
+        vy = np.empty(n)
+        valid = np.empty(n, dtype=bool)
+        pr = self.params
+        _intra_stream(x, y, t, p, self._n_seen, self.sae.times_us.reshape(-1), self.sensor_size.width,
+                      self.sensor_size.height, pr.per_polarity, pr.window_size // 2, pr.delta_px,
+                      pr.inlier_threshold_us, pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability,
+                      pr.min_points, pr.min_inliers, pr.seed, lt, vx, vy, valid)
+        self._n_seen += n
+        self._last_time = int(t[-1])
+        self.sae._last_time = self._last_time
+        out["lifetime_us"] = lt
+        out["vx_px_s"] = vx
+        out["vy_px_s"] = vy
+        out["valid"] = valid
+        return out
+
+
+def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | None = None) -> np.ndarray:
+    """One-shot intra-pixel-area lifetime estimation.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Time-sorted events of dtype :data:`evedge.events.EVENT_DTYPE`. Every event
+        updates the SAE; filter noise first (:func:`evedge.detector.buffer.filter_events`
+        or :func:`evedge.detector.pipeline.detect`).
+    sensor_size : SensorSize or (width, height)
+    params : IntraParams, optional
+
+    Returns
+    -------
+    numpy.ndarray
+        :data:`~evedge.detector.result.LIFETIME_DTYPE`, aligned with ``events``.
+    """
+    return IntraPixelLifetime(sensor_size, params).process(events)
+
+
+@dataclass(frozen=True)
+class WindowFit:
+    """Result of :func:`fit_window`.
+
+    Attributes
+    ----------
+    a_us_per_px, b_us_per_px : float
+        Plane slopes ``dt/dx`` and ``dt/dy`` (NaN when not ok).
+    inliers : numpy.ndarray
+        (N, N) bool: the inlier cells, the centre included (all False when not ok).
+    ok : bool
+    lifetime_us : float
+        ``sqrt(a^2 + b^2)`` or NaN.
+    """
+
+    a_us_per_px: float
+    b_us_per_px: float
+    inliers: np.ndarray
+    ok: bool
+    lifetime_us: float
+
+
+def _check_windows(windows, name: str) -> np.ndarray:
+    w = np.asarray(windows, dtype=np.float64)
+    if w.ndim != 3 or w.shape[1] != w.shape[2]:
+        raise ValueError(f"{name}: expected shape (k, N, N), got {np.shape(windows)}")
+    side = w.shape[1]
+    if side < 3 or side % 2 == 0:
+        raise ValueError(f"{name}: window side N must be odd and >= 3, got {side}")
+    centre = w[:, side // 2, side // 2]
+    if not np.all(np.isfinite(centre)):
+        bad = int(np.flatnonzero(~np.isfinite(centre))[0])
+        raise ValueError(f"{name}: the centre (current event) of window {bad} is not a finite time")
+    if np.any(np.isinf(w)):
+        raise ValueError(f"{name}: infinite timestamps (use NaN for never-fired pixels)")
+    return w
+
+
+def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool = True, seed: int = 0):
+    """:func:`fit_window` on a stack of windows in one call (window ``i`` uses stream index ``i``).
+
+    Returns
+    -------
+    a, b : numpy.ndarray
+        (k,) slopes in us/px (NaN when not ok).
+    ok : numpy.ndarray
+        (k,) bool.
+    inliers : numpy.ndarray
+        (k, N, N) bool.
+    """
+    params = _check_params(params)
+    w = _check_windows(windows, "windows")
+    check_positive("fit_windows", "seed", seed, integer=True, allow_zero=True)
+    k, side, _ = w.shape
+    if params.min_points > side * side or params.min_inliers > side * side:
+        raise ValueError(f"params: min_points/min_inliers exceed the {side}x{side} window")
+    a = np.empty(k)
+    b = np.empty(k)
+    ok = np.empty(k, dtype=bool)
+    inl = np.empty(k * side * side, dtype=bool)
+    delta = params.delta_px if use_intra else 0.0
+    _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
+                 params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
+                 params.min_inliers, a, b, ok, inl)
+    return a, b, ok, inl.reshape(k, side, side)
+
+
+def fit_window(window_t_us, params: IntraParams | None = None, *, use_intra: bool = True, seed: int = 0) -> WindowFit:
+    """2-means + RANSAC on one hand-made SAE window (the paper's figure 7 study).
+
+    Parameters
+    ----------
+    window_t_us : array_like
+        (N, N) float timestamps in us, NaN where the pixel never fired; the centre
+        is the current event. ``N`` need not equal ``params.window_size``.
+    params : IntraParams, optional
+        Threshold, trials, minimum counts (``window_size`` is ignored).
+    use_intra : bool
+        False sets ``delta = 0`` (plain RANSAC).
+    seed : int
+        Seed of the random stream (the window is stream index 0).
+
+    Returns
+    -------
+    WindowFit
+    """
+    w = np.asarray(window_t_us, dtype=np.float64)
+    if w.ndim != 2:
+        raise ValueError(f"window_t_us: expected an (N, N) array, got shape {w.shape}")
+    a, b, ok, inl = fit_windows(w[None], params, use_intra=use_intra, seed=seed)
+    lifetime = float(np.hypot(a[0], b[0])) if ok[0] else float("nan")
+    return WindowFit(float(a[0]), float(b[0]), inl[0], bool(ok[0]), lifetime)
