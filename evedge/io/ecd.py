@@ -1,0 +1,313 @@
+"""The Event Camera Dataset text layout: ``events.txt``, ``images.txt``, ``images/``.
+
+``events.txt`` holds one event per line, ``t x y p``, with ``t`` in float
+seconds and ``p`` in {0, 1}; ``images.txt`` holds ``t images/frame_XXXXXXXX.png``
+per line and the PNGs are 8-bit grey frames. Comment lines start with ``#``.
+
+Parsing is vectorised (:func:`numpy.loadtxt`, about 5 M lines/s here); the
+slow per-line scan runs only after a failure, to name the first bad line.
+
+References
+----------
+.. [1] E. Mueggler, H. Rebecq, G. Gallego, T. Delbruck, D. Scaramuzza, "The
+       event-camera dataset and simulator", IJRR 36(2), 2017
+       (rpg.ifi.uzh.ch/davis_data.html).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..events import Frames, Recording, SensorSize, seconds_to_us
+from ._checks import EventFileError, finish_events
+
+_COLUMNS = ("t", "x", "y", "p")
+_CHUNK_ROWS = 1_000_000
+
+
+# ---------------------------------------------------------------- reading
+
+
+def _data_lines(data: bytes):
+    """Yield ``(line_number, tokens)`` of every data line (1-based numbers)."""
+    for number, raw in enumerate(data.split(b"\n"), start=1):
+        tokens = raw.split(b"#", 1)[0].split()
+        if tokens:
+            yield number, tokens
+
+
+def _line_of_row(data: bytes, row: int) -> int:
+    for k, (number, _) in enumerate(_data_lines(data)):
+        if k == row:
+            return number
+    raise IndexError(row)  # unreachable: rows come from parsing the same data
+
+
+def _first_bad_line(path: Path, data: bytes, ncols: int, names: tuple[str, ...]) -> str:
+    """Name the first line that does not hold ``ncols`` numbers."""
+    truncated = not data.endswith(b"\n")
+    last = data.rstrip(b"\n").count(b"\n") + 1
+    for number, tokens in _data_lines(data):
+        where = f"{path}: line {number}"
+        if number == last and truncated:
+            where += " (the last line, no newline at the end: is the file truncated?)"
+        if len(tokens) != ncols:
+            text = b" ".join(tokens).decode("utf-8", "replace")
+            return f"{where}: expected {ncols} columns '{' '.join(names)}', found {len(tokens)}: {text!r}"
+        for name, tok in zip(names, tokens):
+            try:
+                float(tok)
+            except ValueError:
+                text = tok.decode("utf-8", "replace")
+                return f"{where}: column {name!r} is not a number: {text!r}"
+    return ""
+
+
+def _load_table(path: Path, ncols: int, names: tuple[str, ...]) -> tuple[np.ndarray, bytes]:
+    """Parse a whitespace table of numbers; return ``(array (n, ncols), raw bytes)``."""
+    data = path.read_bytes()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            table = np.loadtxt(path, comments="#", dtype=np.float64, ndmin=2, encoding="utf-8")
+    except (ValueError, UnicodeDecodeError) as err:
+        message = _first_bad_line(path, data, ncols, names)
+        raise EventFileError(message or f"{path}: cannot parse as a table of numbers: {err}") from err
+    if table.size == 0:
+        return np.empty((0, ncols)), data
+    if table.shape[1] != ncols:
+        # every line has the same, wrong, number of columns
+        raise EventFileError(_first_bad_line(path, data, ncols, names))
+    return table, data
+
+
+def _read_frames(images_txt: Path) -> Frames:
+    """Read ``images.txt`` and its PNGs into uint8 frames."""
+    from PIL import Image  # Pillow is slow to import; only frames need it
+
+    folder = images_txt.parent
+    t_us, images = [], []
+    for number, raw in enumerate(images_txt.read_bytes().split(b"\n"), start=1):
+        tokens = raw.split(b"#", 1)[0].split()
+        if not tokens:
+            continue
+        where = f"{images_txt}: line {number}"
+        if len(tokens) != 2:
+            raise EventFileError(f"{where}: expected 't path', found {len(tokens)} columns")
+        try:
+            t_s = float(tokens[0])
+        except ValueError:
+            raise EventFileError(f"{where}: time {tokens[0].decode('utf-8', 'replace')!r} is not a number") from None
+        if not np.isfinite(t_s):
+            raise EventFileError(f"{where}: time is not finite")
+        png = folder / tokens[1].decode("utf-8")
+        try:
+            with Image.open(png) as im:
+                if im.mode != "L":
+                    raise EventFileError(f"{where}: {png} is a {im.mode!r} image, expected 8-bit grey ('L')")
+                img = np.asarray(im, dtype=np.uint8)
+        except (OSError, FileNotFoundError) as err:
+            raise EventFileError(f"{where}: cannot read frame {png}: {err}") from err
+        if images and img.shape != images[0].shape:
+            raise EventFileError(f"{where}: frame {png} is {img.shape[1]}x{img.shape[0]}, "
+                                 f"the first frame is {images[0].shape[1]}x{images[0].shape[0]}")
+        t_us.append(int(seconds_to_us(t_s)))
+        images.append(img)
+    if not images:
+        raise EventFileError(f"{images_txt}: lists no frames")
+    t = np.asarray(t_us, dtype=np.int64)
+    dec = np.flatnonzero(np.diff(t) < 0)
+    if dec.size:
+        raise EventFileError(f"{images_txt}: frame times decrease at frame {int(dec[0]) + 1}")
+    return Frames(t, np.stack(images))
+
+
+def find_events_txt(folder: Path) -> Path:
+    """The events file of an ECD folder: ``events.txt``, else the only ``events*.txt``."""
+    main = folder / "events.txt"
+    if main.is_file():
+        return main
+    found = sorted(folder.glob("events*.txt"))
+    if len(found) == 1:
+        return found[0]
+    listing = ", ".join(p.name for p in found) or "none"
+    raise EventFileError(
+        f"{folder}: not an Event Camera Dataset folder: expected events.txt "
+        f"(or a single events*.txt), found {listing}"
+    )
+
+
+def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:
+    """Read Event Camera Dataset text (a file, or a folder holding ``events.txt``).
+
+    Parameters
+    ----------
+    path : path-like
+        ``events.txt`` (any name) or its folder. An ``images.txt`` beside it
+        and its PNGs are read as frames.
+    sensor_size : SensorSize, optional
+        Needed when there are no frames; must match the frames when there are.
+    sort : bool
+        Sort by time (stable) instead of raising on decreasing timestamps.
+
+    Returns
+    -------
+    Recording
+        ``metadata`` holds ``source``, ``format`` (``"ecd-text"``) and
+        ``sensor_size_from`` (``"frames"`` or ``"option"``).
+
+    Raises
+    ------
+    EventFileError
+        On any malformed line (named by number), non-finite values, polarity
+        outside {0, 1}, unsorted timestamps (unless ``sort``), coordinates
+        outside the sensor, or an unknown sensor size.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = find_events_txt(path)
+    table, data = _load_table(path, 4, _COLUMNS)
+
+    def locate(row: int) -> str:
+        return f"line {_line_of_row(data, row)}"
+
+    t_s, x, y, p = table.T
+    bad = np.flatnonzero(~np.isfinite(table).all(axis=1))
+    if bad.size:
+        i = int(bad[0])
+        col = _COLUMNS[int(np.flatnonzero(~np.isfinite(table[i]))[0])]
+        raise EventFileError(f"{path}: {locate(i)}: column {col!r} is {table[i, _COLUMNS.index(col)]} (not finite)")
+    for name, col in (("x", x), ("y", y)):
+        nonint = np.flatnonzero(col != np.rint(col))
+        if nonint.size:
+            i = int(nonint[0])
+            raise EventFileError(f"{path}: {locate(i)}: {name}={col[i]!r} is not an integer pixel coordinate")
+    badp = np.flatnonzero((p != 0) & (p != 1))
+    if badp.size:
+        i = int(badp[0])
+        raise EventFileError(f"{path}: {locate(i)}: polarity p={p[i]!r}, expected 0 or 1")
+
+    frames = None
+    images_txt = path.parent / "images.txt"
+    if images_txt.is_file():
+        frames = _read_frames(images_txt)
+        frame_size = SensorSize(frames.images.shape[2], frames.images.shape[1])
+        if sensor_size is not None and sensor_size != frame_size:
+            raise EventFileError(
+                f"{path}: sensor size {sensor_size.width}x{sensor_size.height} was given but the "
+                f"frames in {images_txt} are {frame_size.width}x{frame_size.height}"
+            )
+        sensor_size, size_from = frame_size, "frames"
+    elif sensor_size is not None:
+        size_from = "option"
+    else:
+        raise EventFileError(
+            f"{path}: sensor size unknown: no images.txt with frames beside the events; pass it "
+            f"(read_events(..., sensor_size=SensorSize(240, 180)), CLI: --sensor WxH, e.g. --sensor 240x180)"
+        )
+    events, was_sorted = finish_events(
+        path, x, y, seconds_to_us(t_s), p > 0, sensor_size, size_from, locate, sort
+    )
+    metadata = {"source": str(path), "format": "ecd-text", "sensor_size_from": size_from}
+    if frames is not None:
+        metadata["frames_source"] = str(images_txt)
+    if was_sorted:
+        metadata["sorted_on_load"] = True
+    return Recording(events, sensor_size, frames=frames, metadata=metadata)
+
+
+# ---------------------------------------------------------------- writing
+
+
+def _atomic_write(target: Path, write) -> None:
+    """Call ``write(file_object)`` on a temp file beside ``target``, then rename it."""
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _format_seconds(t_us: np.ndarray) -> np.ndarray:
+    """Columns ``(seconds, microseconds)``: exact decimal seconds without float rounding."""
+    return np.stack([t_us // 1_000_000, t_us % 1_000_000], axis=1)
+
+
+def _frames_as_uint8(frames: Frames) -> np.ndarray:
+    images = frames.images
+    if images.dtype == np.uint8:
+        return images
+    if images.dtype.kind == "f":
+        if images.size and (not np.all(np.isfinite(images)) or images.min() < 0 or images.max() > 1):
+            raise ValueError("write_ecd: float frames must lie in [0, 1]")
+        return np.rint(images * 255.0).astype(np.uint8)
+    raise TypeError(f"write_ecd: frames must be uint8 or float in [0, 1], got {images.dtype}")
+
+
+def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
+    """Write a recording as an Event Camera Dataset folder.
+
+    Writes ``events.txt`` (``%.9f %d %d %d``: seconds with 9 decimals, as the
+    dataset does; exact, since times are whole microseconds), and, when the
+    recording has frames, ``images.txt`` and ``images/frame_%08d.png``. Every
+    file is written to a temp file and renamed.
+
+    Parameters
+    ----------
+    folder : path-like
+        Created if missing.
+    recording : Recording
+
+    Returns
+    -------
+    Path
+        The folder.
+
+    Notes
+    -----
+    The layout has no place for the sensor size, ground truth or edge maps:
+    without frames, read it back with ``sensor_size=``; keep truth in the
+    HDF5 format (:func:`evedge.io.write_recording`). Float frames in [0, 1]
+    are quantised to uint8.
+    """
+    if not isinstance(recording, Recording):
+        raise TypeError(f"write_ecd: expected a Recording, got {type(recording).__name__}")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    ev = recording.events
+    if ev.size and ev["t"].min() < 0:
+        raise ValueError("write_ecd: the text format needs event timestamps >= 0")
+    if recording.frames is not None and len(recording.frames) and recording.frames.t_us.min() < 0:
+        raise ValueError("write_ecd: the text format needs frame timestamps >= 0")
+
+    def write_events(fh) -> None:
+        for start in range(0, ev.size, _CHUNK_ROWS):
+            chunk = ev[start:start + _CHUNK_ROWS]
+            cols = np.column_stack([
+                _format_seconds(chunk["t"]), chunk["x"], chunk["y"], chunk["p"].astype(np.int64)
+            ]).astype(np.int64)
+            # one %-format over the whole chunk runs in C, far faster than savetxt's row loop
+            fh.write((("%d.%06d000 %d %d %d\n" * chunk.size) % tuple(cols.ravel().tolist())).encode())
+
+    _atomic_write(folder / "events.txt", write_events)
+    if recording.frames is not None:
+        from PIL import Image
+
+        images = _frames_as_uint8(recording.frames)
+        (folder / "images").mkdir(exist_ok=True)
+        lines = []
+        for k, (t, img) in enumerate(zip(recording.frames.t_us, images)):
+            name = f"images/frame_{k:08d}.png"
+            _atomic_write(folder / name, lambda fh, img=img: Image.fromarray(img).save(fh, format="PNG"))
+            s, us = divmod(int(t), 1_000_000)
+            lines.append(f"{s}.{us:06d}000 {name}\n")
+        _atomic_write(folder / "images.txt", lambda fh: fh.write("".join(lines).encode()))
+    return folder
