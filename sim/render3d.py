@@ -1,0 +1,534 @@
+"""Offscreen 3-D renderer of box scenes seen by a moving camera, with exact ground truth.
+
+A scene is a set of axis-aligned boxes whose six faces each have one flat linear intensity,
+seen by a pinhole camera that moves with constant linear and angular velocity. From one
+rasterisation per time stamp (pyrender, EGL, Mesa llvmpipe) the renderer derives:
+
+- ``intensity``: box-filtered (supersampled) flat-shaded image in linear units;
+- ``depth``: exact z-depth, the pixel ray intersected with the plane of the visible face;
+- ``flow``: the exact motion field of the static scene (Longuet-Higgins & Prazdny);
+- ``edges``: the pixels crossed by a visible discontinuity (face or silhouette boundary).
+
+Conventions
+-----------
+World and camera frames follow OpenCV: x right, y down, z forward (the camera looks along +z
+of its own frame). At ``rotation_rpy_rad = (0, 0, 0)`` the camera frame is the world frame, so
+boxes at positive world z lie in front of a camera at the origin, and world -y is "up".
+Pixel ``(row i, column j)`` has its centre at image coordinates ``(u, v) = (j, i)`` and covers
+``[j - 0.5, j + 0.5] x [i - 0.5, i + 0.5]``; a point ``(X, Y, Z)`` in the camera frame projects
+to ``u = fx X / Z + cx``, ``v = fy Y / Z + cy`` (OpenCV's pixel-centre convention).
+
+pyrender (OpenGL) looks along -z with y up and places pixel centres at half-integers; the
+renderer converts both (a flip of the camera y and z axes, and ``cx + 0.5``, ``cy + 0.5``).
+pyrender is imported lazily, in the constructor, after setting ``PYOPENGL_PLATFORM=egl`` and
+``PYGLET_HEADLESS=1`` (only if unset), so importing this module never touches OpenGL.
+
+References
+----------
+H. C. Longuet-Higgins and K. Prazdny, "The interpretation of a moving retinal image",
+Proc. R. Soc. Lond. B 208, 385-397, 1980 (the instantaneous motion field).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Box3D", "CameraTrajectory", "MeshRenderer", "FACE_ORDER"]
+
+#: Order of ``Box3D.face_intensities``: the face whose outward normal is -x, +x, -y, +y, -z, +z
+#: (world frame; -y is the top face, -z the face towards a camera at the origin looking at +z).
+FACE_ORDER = ("-x", "+x", "-y", "+y", "-z", "+z")
+
+# Clip planes of the OpenGL camera. The near plane clips geometry closer than 5 cm; a 24-bit
+# depth buffer with these planes resolves 0.1 mm at 5 m, ample for the occlusion test (depth
+# values themselves are computed analytically, not read back).
+_ZNEAR_M = 0.05
+_ZFAR_M = 1000.0
+
+# Safety factor of max_speed_px_s over the largest sampled speed (see its Notes).
+_SPEED_SAFETY = 1.5
+
+
+def _vector(value, name: str, length: int = 3) -> tuple[float, ...]:
+    """Return ``value`` as a tuple of ``length`` finite floats or raise naming ``name``."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a sequence of {length} numbers, got {value!r}") from exc
+    if arr.shape != (length,):
+        raise ValueError(f"{name} must have {length} elements, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return tuple(float(x) for x in arr)
+
+
+def _finite(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    return value
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _so3_exp(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix ``exp([w]x)`` (Rodrigues' formula)."""
+    theta = float(np.linalg.norm(w))
+    k = _skew(w)
+    if theta < 1e-12:
+        return np.eye(3) + k
+    return np.eye(3) + (math.sin(theta) / theta) * k + ((1.0 - math.cos(theta)) / theta**2) * (k @ k)
+
+
+def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Camera-to-world rotation of roll/pitch/yaw angles in OpenCV axes.
+
+    ``R = Ry(yaw) @ Rx(pitch) @ Rz(roll)``: yaw about the (down) y axis, then pitch about the
+    (right) x axis, then roll about the (forward, optical) z axis; the aerospace z-y-x sequence
+    mapped onto OpenCV axes (forward z, right x, down y). Positive yaw turns the view towards +x.
+    """
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+    ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+    return ry @ rx @ rz
+
+
+@dataclass(frozen=True)
+class Box3D:
+    """An axis-aligned box with one flat linear intensity per face.
+
+    Parameters
+    ----------
+    center_m : tuple of 3 float
+        Centre in the world frame (OpenCV axes: x right, y down, z forward), metres.
+    size_m : tuple of 3 float
+        Extent along world x, y, z, metres; each > 0.
+    face_intensities : tuple of 6 float
+        Linear intensity in [0, 1] of the faces in :data:`FACE_ORDER` (-x, +x, -y, +y, -z, +z).
+    """
+
+    center_m: tuple[float, float, float]
+    size_m: tuple[float, float, float]
+    face_intensities: tuple[float, float, float, float, float, float]
+
+    def __post_init__(self):
+        object.__setattr__(self, "center_m", _vector(self.center_m, "Box3D.center_m"))
+        size = _vector(self.size_m, "Box3D.size_m")
+        if min(size) <= 0.0:
+            raise ValueError(f"Box3D.size_m must be > 0 along every axis, got {size}")
+        object.__setattr__(self, "size_m", size)
+        faces = _vector(self.face_intensities, "Box3D.face_intensities", length=6)
+        if min(faces) < 0.0 or max(faces) > 1.0:
+            raise ValueError(f"Box3D.face_intensities must lie in [0, 1], got {faces}")
+        object.__setattr__(self, "face_intensities", faces)
+
+
+@dataclass(frozen=True)
+class CameraTrajectory:
+    """Constant-velocity 6-DOF camera motion.
+
+    Parameters
+    ----------
+    position_m : tuple of 3 float
+        Camera centre at t = 0, world frame, metres.
+    velocity_m_s : tuple of 3 float
+        Constant linear velocity of the camera centre, world frame, m/s.
+    rotation_rpy_rad : tuple of 3 float
+        Orientation at t = 0 as (roll, pitch, yaw), see :func:`rotation_from_rpy`
+        (roll about the optical axis z, pitch about x, yaw about y).
+    angular_velocity_rad_s : tuple of 3 float
+        Constant angular velocity ``(wx, wy, wz)`` in the camera's own frame (OpenCV axes), rad/s:
+        ``wy`` is the yaw rate, ``wx`` the pitch rate, ``wz`` the roll rate.
+
+    Notes
+    -----
+    ``R(t) = R0 @ expm([w]x t)`` and ``c(t) = c0 + v t``; the camera-to-world pose is
+    ``[[R(t), c(t)], [0, 1]]``. A body-frame angular velocity keeps the motion a true
+    constant-velocity screw motion (roll/pitch/yaw rates would not be constant in general).
+    """
+
+    position_m: tuple[float, float, float]
+    velocity_m_s: tuple[float, float, float]
+    rotation_rpy_rad: tuple[float, float, float]
+    angular_velocity_rad_s: tuple[float, float, float]
+
+    def __post_init__(self):
+        for name in ("position_m", "velocity_m_s", "rotation_rpy_rad", "angular_velocity_rad_s"):
+            object.__setattr__(self, name, _vector(getattr(self, name), f"CameraTrajectory.{name}"))
+
+    def rotation(self, t_s: float) -> np.ndarray:
+        """Camera-to-world rotation (3, 3) at time ``t_s``."""
+        t_s = _finite(t_s, "t_s")
+        r0 = rotation_from_rpy(*self.rotation_rpy_rad)
+        return r0 @ _so3_exp(np.asarray(self.angular_velocity_rad_s) * t_s)
+
+    def position(self, t_s: float) -> np.ndarray:
+        """Camera centre (3,) in the world frame at time ``t_s``, metres."""
+        t_s = _finite(t_s, "t_s")
+        return np.asarray(self.position_m) + np.asarray(self.velocity_m_s) * t_s
+
+    def pose(self, t_s: float) -> np.ndarray:
+        """Camera-to-world 4x4 matrix at time ``t_s`` (OpenCV camera axes)."""
+        pose = np.eye(4)
+        pose[:3, :3] = self.rotation(t_s)
+        pose[:3, 3] = self.position(t_s)
+        return pose
+
+
+def _import_pyrender():
+    """Import pyrender for headless EGL rendering (lazily: importing OpenGL has side effects)."""
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    os.environ.setdefault("PYGLET_HEADLESS", "1")
+    if not hasattr(np, "infty"):
+        # numpy 2 removed np.infty, which pyrender.mesh still uses (bounds, centroid)
+        np.infty = np.inf
+    import pyrender
+    from OpenGL import GL
+
+    return pyrender, GL
+
+
+def _single_sample_renderer_class(pyrender, GL):
+    """A pyrender Renderer whose main framebuffer has one sample per pixel.
+
+    pyrender always draws into a 4x multisampled framebuffer and resolves it, which blends
+    the colours of the faces meeting in a pixel; face identifiers encoded as colours must not
+    be blended, so the multisampled renderbuffers are re-allocated with 0 samples (which
+    OpenGL defines as single-sample storage) right after pyrender creates them.
+    """
+
+    class _SingleSampleRenderer(pyrender.Renderer):
+        _respecified = None
+
+        def _configure_main_framebuffer(self):
+            super()._configure_main_framebuffer()
+            if self._main_cb_ms is not self._respecified:
+                w, h = self.viewport_width, self.viewport_height
+                GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb_ms)
+                GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, 0, GL.GL_RGBA, w, h)
+                GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db_ms)
+                GL.glRenderbufferStorageMultisample(
+                    GL.GL_RENDERBUFFER, 0, GL.GL_DEPTH_COMPONENT24, w, h
+                )
+                self._respecified = self._main_cb_ms
+
+    return _SingleSampleRenderer
+
+
+def _delete_offscreen(renderer) -> None:
+    """Free an OffscreenRenderer's GL objects and context without terminating the EGL display.
+
+    pyrender's ``OffscreenRenderer.delete`` calls ``eglTerminate`` on the display, which is one
+    per device and shared by every renderer of the process: it would invalidate the contexts of
+    all other live renderers. Here only this renderer's context is destroyed.
+    """
+    platform = renderer._platform
+    try:
+        platform.make_current()
+        renderer._renderer.delete()
+    finally:
+        display = getattr(platform, "_egl_display", None)
+        context = getattr(platform, "_egl_context", None)
+        if display is not None and context is not None:
+            from OpenGL.EGL import EGL_NO_CONTEXT, EGL_NO_SURFACE, eglDestroyContext, eglMakeCurrent
+
+            eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
+            eglDestroyContext(display, context)
+            platform._egl_context = None
+            platform._egl_display = None
+        else:  # other platforms (OSMesa, pyglet) own their context alone
+            platform.delete_context()
+        # OffscreenRenderer.__del__ calls delete(), which then fails harmlessly (and silently)
+        renderer._renderer = None
+        renderer._platform = None
+
+
+def _box_faces(box: Box3D):
+    """Yield (outward normal n, plane offset d with n.x = d on the face, 4 corners) per face."""
+    c = np.asarray(box.center_m)
+    h = np.asarray(box.size_m) / 2.0
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = sign
+            a, b = (axis + 1) % 3, (axis + 2) % 3
+            corners = []
+            for sa, sb in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = c.copy()
+                p[axis] += sign * h[axis]
+                p[a] += sa * h[a]
+                p[b] += sb * h[b]
+                corners.append(p)
+            corners = np.array(corners)  # in order around the quad (faces are double-sided)
+            yield n, float(n @ c + h[axis]), corners
+
+
+class MeshRenderer:
+    """Render intensity, depth, motion field and edges of a box scene for a moving camera.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size in pixels, > 0.
+    fx, fy : float
+        Focal lengths in pixels, > 0.
+    cx, cy : float
+        Principal point in pixels (OpenCV convention: pixel centres at integer coordinates).
+    boxes : sequence of Box3D
+        The static scene.
+    trajectory : CameraTrajectory
+        The camera motion.
+    background : float, default 0.5
+        Linear intensity in [0, 1] where no geometry is seen.
+    supersample : int, default 3
+        Odd factor ``s >= 1``: the scene is rasterised once per time stamp at ``s`` times the
+        resolution (``s**2`` samples per pixel, on a regular grid centred in the pixel).
+
+    Notes
+    -----
+    One rasterisation per time stamp (the last one is cached) draws every face in a unique
+    flat colour (its identifier; 0 = background) without multisampling, so every sample names
+    exactly one face. Everything else is derived from these identifiers:
+
+    - intensity: mean of the face intensities over the ``s x s`` samples of a pixel, in float64
+      (a box filter, i.e. area coverage to within ``1/s`` of a pixel, no 8-bit quantisation);
+    - depth, flow: at the pixel centre (the centre sample, ``s`` odd), from the exact plane of
+      the face seen there, so they are exact up to float64 rounding;
+    - edges: see :meth:`edges`.
+
+    The renderer owns an OpenGL context: call :meth:`close` (or use it as a context manager).
+    """
+
+    def __init__(self, width, height, fx, fy, cx, cy, boxes, trajectory, background=0.5,
+                 supersample=3):
+        for name, value in (("width", width), ("height", height), ("supersample", supersample)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+            if value <= 0:
+                raise ValueError(f"{name} must be > 0, got {value}")
+        if supersample % 2 == 0:
+            raise ValueError(f"supersample must be odd (a sample at the pixel centre), got {supersample}")
+        fx, fy = _finite(fx, "fx"), _finite(fy, "fy")
+        if fx <= 0 or fy <= 0:
+            raise ValueError(f"fx and fy must be > 0, got fx={fx}, fy={fy}")
+        cx, cy = _finite(cx, "cx"), _finite(cy, "cy")
+        background = _finite(background, "background")
+        if not 0.0 <= background <= 1.0:
+            raise ValueError(f"background must lie in [0, 1], got {background}")
+        if not isinstance(trajectory, CameraTrajectory):
+            raise TypeError(f"trajectory must be a CameraTrajectory, got {type(trajectory).__name__}")
+        if isinstance(boxes, Box3D) or not isinstance(boxes, Sequence):
+            raise TypeError("boxes must be a sequence of Box3D")
+        for k, box in enumerate(boxes):
+            if not isinstance(box, Box3D):
+                raise TypeError(f"boxes[{k}] must be a Box3D, got {type(box).__name__}")
+        if 6 * len(boxes) + 1 >= 2**24:
+            raise ValueError(f"too many boxes ({len(boxes)}): face identifiers need 24 bits")
+
+        self.width, self.height = int(width), int(height)
+        self.fx, self.fy, self.cx, self.cy = fx, fy, cx, cy
+        self.background = background
+        self.supersample = int(supersample)
+        self.boxes = tuple(boxes)
+        self.trajectory = trajectory
+
+        # Face table; index 0 is the background (no plane, intensity = background).
+        normals, offsets, lut, quads = [np.full(3, np.nan)], [np.nan], [background], []
+        for box in self.boxes:
+            for (n, d, corners), value in zip(_box_faces(box), box.face_intensities):
+                normals.append(n)
+                offsets.append(d)
+                lut.append(value)
+                quads.append(corners)
+        self._normals = np.array(normals)
+        self._offsets = np.array(offsets)
+        self._lut = np.array(lut, dtype=np.float64)
+
+        # Normalised image coordinates of the pixel centres (x = X/Z, y = Y/Z).
+        self._x = ((np.arange(self.width, dtype=np.float64) - cx) / fx)[None, :].repeat(self.height, 0)
+        self._y = ((np.arange(self.height, dtype=np.float64) - cy) / fy)[:, None].repeat(self.width, 1)
+
+        self._cache_t = None
+        self._cache_ids = None
+        self._renderer = None
+        self._build_gl(quads)
+
+    # -- OpenGL ---------------------------------------------------------------------------
+    def _build_gl(self, quads):
+        pyrender, GL = _import_pyrender()
+        import trimesh
+
+        s = self.supersample
+        self._flat = pyrender.RenderFlags.FLAT
+        scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 1.0], ambient_light=[0.0, 0.0, 0.0])
+        for face_id, corners in enumerate(quads, start=1):
+            # The identifier is the face colour: 8 bits per channel, exact in FLAT mode.
+            rgb = [(face_id >> shift & 255) / 255.0 for shift in (0, 8, 16)]
+            material = pyrender.MetallicRoughnessMaterial(
+                baseColorFactor=rgb + [1.0], metallicFactor=0.0, doubleSided=True
+            )
+            mesh = trimesh.Trimesh(vertices=corners, faces=[[0, 1, 2], [0, 2, 3]], process=False)
+            scene.add(pyrender.Mesh.from_trimesh(mesh, material=material, smooth=False))
+        camera = pyrender.IntrinsicsCamera(
+            fx=s * self.fx, fy=s * self.fy,
+            cx=s * (self.cx + 0.5), cy=s * (self.cy + 0.5),
+            znear=_ZNEAR_M, zfar=_ZFAR_M,
+        )
+        self._camera_node = scene.add(camera, pose=np.eye(4))
+        self._scene = scene
+        renderer = pyrender.OffscreenRenderer(s * self.width, s * self.height)
+        try:
+            renderer._renderer.delete()
+            renderer._renderer = _single_sample_renderer_class(pyrender, GL)(
+                s * self.width, s * self.height
+            )
+        except Exception:
+            _delete_offscreen(renderer)
+            raise
+        self._renderer = renderer
+
+    def _face_ids(self, t_s: float) -> np.ndarray:
+        """Face identifiers (s*H, s*W) int64 of the supersampled image at ``t_s`` (cached)."""
+        t_s = _finite(t_s, "t_s")
+        if self._renderer is None:
+            raise RuntimeError("MeshRenderer is closed")
+        if self._cache_t != t_s:
+            pose = self.trajectory.pose(t_s)
+            pose[:3, 1:3] *= -1.0  # OpenCV camera (y down, looks +z) -> OpenGL (y up, looks -z)
+            self._scene.set_pose(self._camera_node, pose)
+            color, _ = self._renderer.render(self._scene, flags=self._flat)
+            color = color.astype(np.int64)
+            ids = color[..., 0] | (color[..., 1] << 8) | (color[..., 2] << 16)
+            if ids.max() >= len(self._lut):
+                raise RuntimeError("rendered an unknown face colour (multisampling active?)")
+            self._cache_t, self._cache_ids = t_s, ids
+        return self._cache_ids
+
+    def _center_ids(self, t_s: float) -> np.ndarray:
+        s = self.supersample
+        return self._face_ids(t_s)[s // 2::s, s // 2::s]
+
+    # -- public ---------------------------------------------------------------------------
+    def intensity(self, t_s: float) -> np.ndarray:
+        """Linear intensity image (H, W) float64 in [0, 1] at time ``t_s``.
+
+        Flat shading: a pixel wholly on one face has exactly that face's intensity; a pixel
+        shared by faces (or the background) has the mean over its ``s x s`` samples.
+        """
+        s = self.supersample
+        values = self._lut[self._face_ids(t_s)]
+        return values.reshape(self.height, s, self.width, s).mean(axis=(1, 3))
+
+    def depth(self, t_s: float) -> np.ndarray:
+        """Z-depth (H, W) float64 in metres at the pixel centres; ``inf`` where no geometry.
+
+        The depth is the intersection of the pixel ray with the plane of the face visible at
+        the pixel centre: ``Z = (d - n.c) / (n.R q)`` with ``q = (x, y, 1)``.
+        """
+        ids = self._center_ids(t_s)
+        rot = self.trajectory.rotation(t_s)
+        centre = self.trajectory.position(t_s)
+        n = self._normals[ids]  # (H, W, 3); NaN for the background
+        nr = n @ rot  # n^T R, so (n^T R) q = n . (R q)
+        denom = nr[..., 0] * self._x + nr[..., 1] * self._y + nr[..., 2]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = (self._offsets[ids] - n @ centre) / denom
+        return np.where(ids == 0, np.inf, z)
+
+    def flow(self, t_s: float) -> np.ndarray:
+        """Motion field (2, H, W) float64 ``(vx, vy)`` in px/s at the pixel centres.
+
+        Notes
+        -----
+        A static point ``P`` in the frame of a camera moving with linear velocity ``V`` and
+        angular velocity ``w`` (both in the camera frame) moves as ``dP/dt = -V - w x P``.
+        Differentiating ``u = fx X/Z + cx``, ``v = fy Y/Z + cy`` with ``a = (dP/dt) / Z``:
+        ``du/dt = fx (a_x - x a_z)``, ``dv/dt = fy (a_y - y a_z)`` (Longuet-Higgins & Prazdny
+        1980). Background pixels are points at infinity (``1/Z = 0``): rotational flow only.
+        """
+        inv_z = 1.0 / self.depth(t_s)  # 0 for the background (inf depth)
+        rot = self.trajectory.rotation(t_s)
+        v_cam = rot.T @ np.asarray(self.trajectory.velocity_m_s)
+        wx, wy, wz = self.trajectory.angular_velocity_rad_s
+        x, y = self._x, self._y
+        # a = -V/Z - w x q with q = (x, y, 1)
+        ax = -v_cam[0] * inv_z - (wy - wz * y)
+        ay = -v_cam[1] * inv_z - (wz * x - wx)
+        az = -v_cam[2] * inv_z - (wx * y - wy * x)
+        return np.stack([self.fx * (ax - x * az), self.fy * (ay - y * az)])
+
+    def edges(self, t_s: float) -> np.ndarray:
+        """Edge map (H, W) bool at time ``t_s``: pixels crossed by a visible discontinuity.
+
+        Notes
+        -----
+        Definition: in the ``s``-times supersampled face-identifier image, a sample is marked
+        when one of its 4-neighbours shows another face (or the background); a pixel is an edge
+        pixel when any of its ``s x s`` samples is marked. Every face is its own region, so
+        silhouettes, occlusion boundaries and the creases between two visible faces of a box
+        are edges, whatever their contrast. This equals "a projected visible edge crosses the
+        closed pixel square" up to ``1/s`` px: an edge within ``1/(2s)`` px of the border
+        between two pixels marks both, and an edge that clips a pixel corner by less than
+        ``1/s`` px may be missed. With ``s = 1`` it is the classic 4-neighbour definition
+        (both sides of an edge are marked).
+        """
+        s = self.supersample
+        ids = self._face_ids(t_s)
+        marked = np.zeros(ids.shape, dtype=bool)
+        diff_x = ids[:, 1:] != ids[:, :-1]
+        diff_y = ids[1:, :] != ids[:-1, :]
+        marked[:, 1:] |= diff_x
+        marked[:, :-1] |= diff_x
+        marked[1:, :] |= diff_y
+        marked[:-1, :] |= diff_y
+        return marked.reshape(self.height, s, self.width, s).any(axis=(1, 3))
+
+    def max_speed_px_s(self, t0_s: float, t1_s: float, n_samples: int = 5) -> float:
+        """Bound on the image speed ``|flow|`` over all pixels for ``t`` in ``[t0_s, t1_s]``.
+
+        Notes
+        -----
+        The maximum of ``|flow|`` over the pixels at ``n_samples`` evenly spaced times
+        (endpoints included), times a safety factor of 1.5. This is a heuristic bound, not a
+        proof: for constant-velocity motion the field changes smoothly with time except where
+        a pixel switches surface (occlusions), and the factor covers the growth between
+        samples for intervals short compared with depth / speed.
+        """
+        t0_s, t1_s = _finite(t0_s, "t0_s"), _finite(t1_s, "t1_s")
+        if t1_s < t0_s:
+            raise ValueError(f"t1_s must be >= t0_s, got t0_s={t0_s}, t1_s={t1_s}")
+        if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
+            raise ValueError(f"n_samples must be an int >= 1, got {n_samples!r}")
+        times = [t0_s] if t1_s == t0_s else np.linspace(t0_s, t1_s, int(n_samples))
+        top = max(float(np.hypot(*self.flow(float(t))).max()) for t in times)
+        return _SPEED_SAFETY * top
+
+    def close(self) -> None:
+        """Free the OpenGL context (idempotent); the renderer cannot render afterwards."""
+        if self._renderer is not None:
+            renderer, self._renderer = self._renderer, None
+            self._cache_t = self._cache_ids = None
+            _delete_offscreen(renderer)
+
+    @property
+    def closed(self) -> bool:
+        return self._renderer is None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
