@@ -1,0 +1,280 @@
+"""numba kernels: exact area of a shape inside a pixel square.
+
+Pixel ``(x, y)`` is the square ``[x - 0.5, x + 0.5] x [y - 0.5, y + 0.5]``
+(pixel centres on integer coordinates, x right, y down). Every coverage is the
+exact area of the intersection (no supersampling): polygons by
+Sutherland-Hodgman clipping against the square and the shoelace formula,
+circles by the signed circle/triangle decomposition, stripes by the exact CDF
+of the pixel square projected on the stripe normal. The public, validating
+wrappers are in :mod:`evedge.sim.coverage`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+#: Half the diagonal of the unit pixel square, slightly enlarged: a boundary
+#: farther than this from the pixel centre cannot touch the square.
+_HALF_DIAG = 0.7072
+
+
+@njit(cache=True)
+def _clip_axis(ix, iy, n, ox, oy, axis, value, keep_ge):
+    """Clip polygon ``(ix, iy)[:n]`` to the half-plane ``coord >= value`` (or ``<=``)."""
+    if n == 0:
+        return 0
+    m = 0
+    sx = ix[n - 1]
+    sy = iy[n - 1]
+    sc = sx if axis == 0 else sy
+    s_in = sc >= value if keep_ge else sc <= value
+    for i in range(n):
+        ex = ix[i]
+        ey = iy[i]
+        ec = ex if axis == 0 else ey
+        e_in = ec >= value if keep_ge else ec <= value
+        if e_in != s_in:
+            # the edge crosses the clip line: add the crossing point
+            f = (value - sc) / (ec - sc)
+            if axis == 0:
+                ox[m] = value
+                oy[m] = sy + f * (ey - sy)
+            else:
+                ox[m] = sx + f * (ex - sx)
+                oy[m] = value
+            m += 1
+        if e_in:
+            ox[m] = ex
+            oy[m] = ey
+            m += 1
+        sx = ex
+        sy = ey
+        sc = ec
+        s_in = e_in
+    return m
+
+
+@njit(cache=True)
+def _shoelace(xs, ys, n):
+    a = 0.0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        a += xs[i] * ys[j] - xs[j] * ys[i]
+    return 0.5 * a
+
+
+@njit(cache=True)
+def _polygon_box_area(px, py, n, x0, y0, x1, y1, ax, ay, bx, by):
+    """Exact area of polygon ``(px, py)[:n]`` inside the box ``[x0, x1] x [y0, y1]``.
+
+    Sutherland-Hodgman against a convex clip window is exact in area also for
+    a concave (simple) subject polygon: the degenerate edges it may create run
+    along the window border and enclose no area. ``ax..by`` are scratch
+    buffers of length >= 6 n + 16.
+    """
+    for i in range(n):
+        ax[i] = px[i]
+        ay[i] = py[i]
+    m = _clip_axis(ax, ay, n, bx, by, 0, x0, True)
+    m = _clip_axis(bx, by, m, ax, ay, 0, x1, False)
+    m = _clip_axis(ax, ay, m, bx, by, 1, y0, True)
+    m = _clip_axis(bx, by, m, ax, ay, 1, y1, False)
+    return abs(_shoelace(ax, ay, m))
+
+
+@njit(cache=True)
+def _sector(ux, uy, vx, vy, r):
+    return 0.5 * r * r * math.atan2(ux * vy - uy * vx, ux * vx + uy * vy)
+
+
+@njit(cache=True)
+def _disk_triangle_signed(ax, ay, bx, by, r):
+    """Signed area of disk(0, r) intersected with triangle (0, a, b)."""
+    dx = bx - ax
+    dy = by - ay
+    qa = dx * dx + dy * dy
+    if qa == 0.0:
+        return 0.0
+    qb = ax * dx + ay * dy
+    qc = ax * ax + ay * ay - r * r
+    disc = qb * qb - qa * qc
+    if disc <= 0.0:
+        return _sector(ax, ay, bx, by, r)
+    sq = math.sqrt(disc)
+    t1 = (-qb - sq) / qa
+    t2 = (-qb + sq) / qa
+    if t2 <= 0.0 or t1 >= 1.0:
+        return _sector(ax, ay, bx, by, r)
+    t1 = max(t1, 0.0)
+    t2 = min(t2, 1.0)
+    px = ax + t1 * dx
+    py = ay + t1 * dy
+    qx = ax + t2 * dx
+    qy = ay + t2 * dy
+    return _sector(ax, ay, px, py, r) + 0.5 * (px * qy - py * qx) + _sector(qx, qy, bx, by, r)
+
+
+@njit(cache=True)
+def _disk_box_area(cx, cy, r, x0, y0, x1, y1):
+    """Exact area of disk((cx, cy), r) inside the box ``[x0, x1] x [y0, y1]``."""
+    a = _disk_triangle_signed(x0 - cx, y0 - cy, x1 - cx, y0 - cy, r)
+    a += _disk_triangle_signed(x1 - cx, y0 - cy, x1 - cx, y1 - cy, r)
+    a += _disk_triangle_signed(x1 - cx, y1 - cy, x0 - cx, y1 - cy, r)
+    a += _disk_triangle_signed(x0 - cx, y1 - cy, x0 - cx, y0 - cy, r)
+    return abs(a)
+
+
+@njit(cache=True)
+def _ramp2(z):
+    return 0.5 * z * z if z > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _square_projection_cdf(s, a, b):
+    """CDF at ``s`` of ``U(-a/2, a/2) + U(-b/2, b/2)`` (unit square projected on a unit normal).
+
+    ``a = |nx|`` and ``b = |ny|``: the pixel square's coordinate along the
+    normal is this trapezoidal distribution around the pixel centre.
+    """
+    if a < b:
+        a, b = b, a
+    if b < 1e-12:
+        f = s / a + 0.5
+        return min(1.0, max(0.0, f))
+    h = 0.5 * (a + b)
+    g = 0.5 * (a - b)
+    f = (_ramp2(s + h) - _ramp2(s + g) - _ramp2(s - g) + _ramp2(s - h)) / (a * b)
+    return min(1.0, max(0.0, f))
+
+
+@njit(cache=True)
+def _stripe_dark_fraction(uc, nx, ny, period, duty):
+    """Exact fraction of the pixel square whose stripe coordinate ``u`` is dark.
+
+    ``uc`` is ``u`` at the pixel centre; dark means ``u mod period < duty * period``.
+    """
+    a = abs(nx)
+    b = abs(ny)
+    h = 0.5 * (a + b)
+    k0 = math.floor((uc - h) / period)
+    k1 = math.floor((uc + h) / period)
+    total = 0.0
+    for k in range(k0, k1 + 1):
+        lo = k * period - uc
+        hi = lo + duty * period
+        total += _square_projection_cdf(hi, a, b) - _square_projection_cdf(lo, a, b)
+    return min(1.0, max(0.0, total))
+
+
+@njit(cache=True)
+def _point_in_polygon(x, y, px, py, n):
+    inside = False
+    j = n - 1
+    for i in range(n):
+        yi = py[i]
+        yj = py[j]
+        if (yi > y) != (yj > y):
+            xc = px[i] + (y - yi) * (px[j] - px[i]) / (yj - yi)
+            if x < xc:
+                inside = not inside
+        j = i
+    return inside
+
+
+@njit(cache=True)
+def _segment_dist2(x, y, ax, ay, bx, by):
+    dx = bx - ax
+    dy = by - ay
+    ll = dx * dx + dy * dy
+    t = 0.0
+    if ll > 0.0:
+        t = ((x - ax) * dx + (y - ay) * dy) / ll
+        t = min(1.0, max(0.0, t))
+    ex = ax + t * dx - x
+    ey = ay + t * dy - y
+    return ex * ex + ey * ey
+
+
+@njit(cache=True)
+def _render_polygon(out, edge, width, height, px, py, value, background, edge_tol, ax, ay, bx, by):
+    """Add polygon ``(px, py)`` of intensity ``value`` over ``background`` into ``out`` (flat, row-major)."""
+    n = px.shape[0]
+    xmin = px[0]
+    xmax = px[0]
+    ymin = py[0]
+    ymax = py[0]
+    for i in range(1, n):
+        xmin = min(xmin, px[i])
+        xmax = max(xmax, px[i])
+        ymin = min(ymin, py[i])
+        ymax = max(ymax, py[i])
+    c0 = max(0, int(math.floor(xmin + 0.5)))
+    c1 = min(width - 1, int(math.floor(xmax + 0.5)))
+    r0 = max(0, int(math.floor(ymin + 0.5)))
+    r1 = min(height - 1, int(math.floor(ymax + 0.5)))
+    lim = _HALF_DIAG * _HALF_DIAG
+    for y in range(r0, r1 + 1):
+        for x in range(c0, c1 + 1):
+            near = False
+            j = n - 1
+            for i in range(n):
+                # cheap bounding-box rejection before the exact distance
+                if (min(px[i], px[j]) - _HALF_DIAG <= x <= max(px[i], px[j]) + _HALF_DIAG
+                        and min(py[i], py[j]) - _HALF_DIAG <= y <= max(py[i], py[j]) + _HALF_DIAG):
+                    if _segment_dist2(x, y, px[j], py[j], px[i], py[i]) <= lim:
+                        near = True
+                        break
+                j = i
+            if not near:
+                cov = 1.0 if _point_in_polygon(x, y, px, py, n) else 0.0
+            else:
+                cov = _polygon_box_area(px, py, n, x - 0.5, y - 0.5, x + 0.5, y + 0.5, ax, ay, bx, by)
+                cov = min(1.0, max(0.0, cov))
+                if edge_tol < cov < 1.0 - edge_tol:
+                    edge[y * width + x] = True
+            if cov > 0.0:
+                out[y * width + x] += cov * (value - background)
+
+
+@njit(cache=True)
+def _render_disk(out, edge, width, height, cx, cy, r, value, background, edge_tol):
+    c0 = max(0, int(math.floor(cx - r + 0.5)))
+    c1 = min(width - 1, int(math.floor(cx + r + 0.5)))
+    r0 = max(0, int(math.floor(cy - r + 0.5)))
+    r1 = min(height - 1, int(math.floor(cy + r + 0.5)))
+    for y in range(r0, r1 + 1):
+        for x in range(c0, c1 + 1):
+            d = math.sqrt((x - cx) ** 2 + (y - cy) ** 2)
+            if d + _HALF_DIAG <= r:
+                cov = 1.0
+            elif d - _HALF_DIAG >= r:
+                cov = 0.0
+            else:
+                cov = _disk_box_area(cx, cy, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)
+                cov = min(1.0, max(0.0, cov))
+                if edge_tol < cov < 1.0 - edge_tol:
+                    edge[y * width + x] = True
+            if cov > 0.0:
+                out[y * width + x] += cov * (value - background)
+
+
+@njit(cache=True)
+def _render_stripes(out, edge, width, row0, row1, nx, ny, offset, period, duty, dark, light, edge_tol):
+    """Write stripes into rows ``row0 <= y < row1``: ``u = nx x + ny y - offset``, dark where ``u mod period < duty period``."""
+    for y in range(row0, row1):
+        for x in range(width):
+            uc = nx * x + ny * y - offset
+            r = uc - period * math.floor(uc / period)
+            h = 0.5 * (abs(nx) + abs(ny))
+            # fast path: the pixel's footprint on the normal lies inside one stripe
+            if h < r < duty * period - h:
+                f = 1.0
+            elif duty * period + h < r < period - h:
+                f = 0.0
+            else:
+                f = _stripe_dark_fraction(uc, nx, ny, period, duty)
+            out[y * width + x] = light + f * (dark - light)
+            if edge_tol < f < 1.0 - edge_tol:
+                edge[y * width + x] = True

@@ -1,0 +1,284 @@
+"""Analytic renderers of planar scenes: shapes on a background, and moving stripes.
+
+Both render the exact area coverage of every pixel square (see
+:mod:`evedge.sim._coverage`), give the exact edge map from the same geometry
+and the exact per-point ground truth (:class:`evedge.sim.renderer.GeometricTruth`).
+
+Edge map definition: pixel ``(x, y)`` is an edge pixel at time ``t`` when a
+shape boundary passes through the interior of its square
+``[x - 0.5, x + 0.5] x [y - 0.5, y + 0.5]``, decided as
+``1e-9 < coverage < 1 - 1e-9`` for some shape (a boundary through the open
+square leaves area on both sides; one lying on the square's border does not
+count).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._coverage import _render_disk, _render_polygon, _render_stripes
+from ._nearest import _nearest_outward_normal
+from .motion import PlanarMotion
+
+#: Coverage tolerance of the edge-map definition (px^2).
+EDGE_AREA_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Polygon:
+    """A filled simple polygon (object coordinates in px at t = 0) of one intensity."""
+
+    vertices_px: np.ndarray
+    intensity: float
+
+    def __post_init__(self) -> None:
+        v = np.ascontiguousarray(self.vertices_px, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3 or not np.all(np.isfinite(v)):
+            raise ValueError(f"Polygon.vertices_px must be a finite (n >= 3, 2) array, got shape {v.shape}")
+        if not 0.0 <= self.intensity <= 1.0:
+            raise ValueError(f"Polygon.intensity must be in [0, 1], got {self.intensity}")
+        object.__setattr__(self, "vertices_px", v)
+
+    @property
+    def orientation(self) -> float:
+        x, y = self.vertices_px[:, 0], self.vertices_px[:, 1]
+        return float(np.sign(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
+
+
+@dataclass(frozen=True)
+class Circle:
+    """A filled disk (centre in object px at t = 0)."""
+
+    center_px: tuple[float, float]
+    radius_px: float
+    intensity: float
+
+    def __post_init__(self) -> None:
+        if not (self.radius_px > 0 and math.isfinite(self.radius_px)):
+            raise ValueError(f"Circle.radius_px must be > 0, got {self.radius_px}")
+        if not 0.0 <= self.intensity <= 1.0:
+            raise ValueError(f"Circle.intensity must be in [0, 1], got {self.intensity}")
+
+
+def regular_polygon(center, radius_px: float, sides: int, rotation_rad: float = 0.0) -> np.ndarray:
+    """Vertices of a regular polygon with circumradius ``radius_px``."""
+    a = rotation_rad + 2 * np.pi * np.arange(sides) / sides - np.pi / 2
+    return np.stack([center[0] + radius_px * np.cos(a), center[1] + radius_px * np.sin(a)], axis=1)
+
+
+def star_polygon(center, radius_px: float, points: int, inner_ratio: float, rotation_rad: float = 0.0) -> np.ndarray:
+    """Vertices of a star with ``points`` tips (outer radius ``radius_px``)."""
+    k = np.arange(2 * points)
+    r = np.where(k % 2 == 0, radius_px, radius_px * inner_ratio)
+    a = rotation_rad + np.pi * k / points - np.pi / 2
+    return np.stack([center[0] + r * np.cos(a), center[1] + r * np.sin(a)], axis=1)
+
+
+class ShapesRenderer:
+    """Non-overlapping shapes of flat intensity on a flat background, moving rigidly.
+
+    Parameters
+    ----------
+    width, height : int
+        Sensor size.
+    shapes : list of Polygon or Circle
+        Shapes in object coordinates (their image position at ``t = 0``).
+        Intensities are composed as ``bg + sum_k coverage_k (I_k - bg)``, exact
+        for non-overlapping shapes.
+    motion : PlanarMotion
+        The rigid image-plane motion shared by all shapes.
+    background : float
+        Background intensity in [0, 1].
+    """
+
+    def __init__(self, width: int, height: int, shapes, motion: PlanarMotion, background: float = 0.8):
+        self.width = int(width)
+        self.height = int(height)
+        self.motion = motion
+        self.background = float(background)
+        self.polygons = [s for s in shapes if isinstance(s, Polygon)]
+        self.circles = [s for s in shapes if isinstance(s, Circle)]
+        if len(self.polygons) + len(self.circles) != len(shapes):
+            raise TypeError("ShapesRenderer: shapes must be Polygon or Circle instances")
+        nmax = max([p.vertices_px.shape[0] for p in self.polygons], default=3)
+        self._scratch = [np.empty(6 * nmax + 16) for _ in range(4)]
+        # flattened geometry for the truth kernel
+        verts = [p.vertices_px for p in self.polygons]
+        self._px = np.ascontiguousarray(np.concatenate([v[:, 0] for v in verts]) if verts else np.empty(0))
+        self._py = np.ascontiguousarray(np.concatenate([v[:, 1] for v in verts]) if verts else np.empty(0))
+        self._pstart = np.concatenate([[0], np.cumsum([v.shape[0] for v in verts])]).astype(np.int64)
+        self._porient = np.array([p.orientation for p in self.polygons], dtype=np.float64)
+        self._pflip = np.array([1.0 if p.intensity < self.background else -1.0 for p in self.polygons])
+        self._cx = np.array([c.center_px[0] for c in self.circles], dtype=np.float64)
+        self._cy = np.array([c.center_px[1] for c in self.circles], dtype=np.float64)
+        self._cr = np.array([c.radius_px for c in self.circles], dtype=np.float64)
+        self._cflip = np.array([1.0 if c.intensity < self.background else -1.0 for c in self.circles])
+
+    def _render(self, t_s: float):
+        w, h = self.width, self.height
+        out = np.full(w * h, self.background)
+        edge = np.zeros(w * h, dtype=np.bool_)
+        ax, ay, bx, by = self._scratch
+        for p in self.polygons:
+            x, y = self.motion.to_image(p.vertices_px[:, 0], p.vertices_px[:, 1], t_s)
+            _render_polygon(out, edge, w, h, np.ascontiguousarray(x), np.ascontiguousarray(y),
+                            p.intensity, self.background, EDGE_AREA_TOL, ax, ay, bx, by)
+        for c in self.circles:
+            x, y = self.motion.to_image(c.center_px[0], c.center_px[1], t_s)
+            _render_disk(out, edge, w, h, float(x), float(y), c.radius_px, c.intensity, self.background,
+                         EDGE_AREA_TOL)
+        np.clip(out, 0.0, 1.0, out=out)
+        return out.reshape(h, w), edge.reshape(h, w)
+
+    def intensity(self, t_s: float) -> np.ndarray:
+        return self._render(t_s)[0]
+
+    def edges(self, t_s: float) -> np.ndarray:
+        return self._render(t_s)[1]
+
+    def flow(self, t_s: float) -> np.ndarray:
+        yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
+        vx, vy = self.motion.flow_at(xx, yy, t_s)
+        return np.stack([np.broadcast_to(vx, xx.shape), np.broadcast_to(vy, xx.shape)]).astype(np.float64)
+
+    def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
+        return self.motion.max_speed_px_s(t0_s, t1_s, self.width, self.height)
+
+    def point_truth(self, x, y, t_s):
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        t_s = np.asarray(t_s, dtype=np.float64)
+        m = self.motion
+        theta, _, sx, sy, _, _ = m.state(t_s)
+        vx, vy = m.flow_at(x, y, t_s)
+        c, s = np.cos(theta), np.sin(theta)
+        cx, cy = m.center_px
+        rx, ry = x - cx - sx, y - cy - sy
+        qx = np.ascontiguousarray(cx + c * rx + s * ry)  # R(-theta)
+        qy = np.ascontiguousarray(cy - s * rx + c * ry)
+        onx = np.empty_like(qx)
+        ony = np.empty_like(qx)
+        _nearest_outward_normal(qx, qy, self._px, self._py, self._pstart, self._porient, self._pflip,
+                                self._cx, self._cy, self._cr, self._cflip, onx, ony)
+        nx = c * onx - s * ony  # back to the image frame: R(theta)
+        ny = s * onx + c * ony
+        return np.asarray(vx, dtype=np.float64), np.asarray(vy, dtype=np.float64), nx, ny
+
+    def close(self) -> None:
+        pass
+
+
+@dataclass(frozen=True)
+class StripeLayer:
+    """Parallel stripes filling the rows ``rows[0] <= y < rows[1]``.
+
+    The stripe coordinate is ``u = n . (p - v t) - phase_px`` with the unit
+    normal ``n = (cos angle, sin angle)``; the pixel is dark where
+    ``u mod period_px < duty * period_px``. The stripes move with velocity
+    ``velocity_px_s`` (any direction: the normal speed is ``v . n``).
+    """
+
+    rows: tuple[int, int]
+    period_px: float
+    angle_rad: float
+    velocity_px_s: tuple[float, float]
+    dark: float = 0.2
+    light: float = 0.8
+    duty: float = 0.5
+    phase_px: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.rows[0] < self.rows[1]):
+            raise ValueError(f"StripeLayer.rows must satisfy 0 <= start < end, got {self.rows}")
+        if not self.period_px > 0:
+            raise ValueError(f"StripeLayer.period_px must be > 0, got {self.period_px}")
+        if not 0 < self.duty < 1:
+            raise ValueError(f"StripeLayer.duty must be in (0, 1), got {self.duty}")
+        for name in ("dark", "light"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"StripeLayer.{name} must be in [0, 1]")
+
+    @property
+    def normal(self) -> tuple[float, float]:
+        return (math.cos(self.angle_rad), math.sin(self.angle_rad))
+
+
+class StripesRenderer:
+    """Horizontal bands of moving stripes (one :class:`StripeLayer` per band) over a background."""
+
+    def __init__(self, width: int, height: int, layers, background: float = 0.5):
+        self.width = int(width)
+        self.height = int(height)
+        self.layers = list(layers)
+        self.background = float(background)
+        self._layer_of_row = np.full(self.height, -1, dtype=np.int64)
+        for k, layer in enumerate(self.layers):
+            r0, r1 = layer.rows[0], min(layer.rows[1], self.height)
+            if np.any(self._layer_of_row[r0:r1] >= 0):
+                raise ValueError(f"StripesRenderer: layer {k} rows {layer.rows} overlap another layer")
+            self._layer_of_row[r0:r1] = k
+
+    def _render(self, t_s: float):
+        w, h = self.width, self.height
+        out = np.full(w * h, self.background)
+        edge = np.zeros(w * h, dtype=np.bool_)
+        for layer in self.layers:
+            nx, ny = layer.normal
+            offset = nx * layer.velocity_px_s[0] * t_s + ny * layer.velocity_px_s[1] * t_s + layer.phase_px
+            _render_stripes(out, edge, w, layer.rows[0], min(layer.rows[1], h), nx, ny, offset,
+                            layer.period_px, layer.duty, layer.dark, layer.light, EDGE_AREA_TOL)
+        return out.reshape(h, w), edge.reshape(h, w)
+
+    def intensity(self, t_s: float) -> np.ndarray:
+        return self._render(t_s)[0]
+
+    def edges(self, t_s: float) -> np.ndarray:
+        return self._render(t_s)[1]
+
+    def flow(self, t_s: float) -> np.ndarray:
+        out = np.zeros((2, self.height, self.width))
+        for layer in self.layers:
+            r0, r1 = layer.rows[0], min(layer.rows[1], self.height)
+            out[0, r0:r1] = layer.velocity_px_s[0]
+            out[1, r0:r1] = layer.velocity_px_s[1]
+        return out
+
+    def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
+        return max([math.hypot(*layer.velocity_px_s) for layer in self.layers], default=0.0)
+
+    def point_truth(self, x, y, t_s):
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        t_s = np.asarray(t_s, dtype=np.float64)
+        vx = np.zeros_like(x)
+        vy = np.zeros_like(x)
+        nx = np.full_like(x, np.nan)
+        ny = np.full_like(x, np.nan)
+        rows = np.clip(y.astype(np.int64), 0, self.height - 1)
+        k_of = self._layer_of_row[rows]
+        for k, layer in enumerate(self.layers):
+            sel = k_of == k
+            if not np.any(sel):
+                continue
+            n0, n1 = layer.normal
+            v0, v1 = layer.velocity_px_s
+            vx[sel] = v0
+            vy[sel] = v1
+            u = n0 * (x[sel] - v0 * t_s[sel]) + n1 * (y[sel] - v1 * t_s[sel]) - layer.phase_px
+            r = np.mod(u, layer.period_px)
+            dp = layer.duty * layer.period_px
+            # boundaries at r = 0 and r = period (light -> dark along +n) and r = dp (dark -> light)
+            d_start = np.minimum(r, layer.period_px - r)
+            d_end = np.abs(r - dp)
+            sign = np.where(d_end < d_start, 1.0, -1.0)
+            if layer.dark > layer.light:
+                sign = -sign
+            nx[sel] = sign * n0
+            ny[sel] = sign * n1
+        return vx, vy, nx, ny
+
+    def close(self) -> None:
+        pass

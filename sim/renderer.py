@@ -1,0 +1,69 @@
+"""The renderer protocol: what the event converter needs from a scene.
+
+A renderer answers, for any time ``t_s`` (seconds), the linear intensity image,
+the motion field and the exact edge map, and bounds the image speed over a time
+interval (used to bound the sampling step). Planar analytic renderers
+(:mod:`evedge.sim.planar`) and the 3-D mesh renderer
+(:class:`evedge.sim.render3d.MeshRenderer`) implement it.
+
+Renderers that know their geometry may also implement :class:`GeometricTruth`;
+the simulator then takes each event's flow and brightness-gradient direction
+from the geometry at the event's exact time instead of from the sampled frames.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Renderer(Protocol):
+    """A scene seen by the sensor, queried at any time.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size in pixels; images are indexed ``[y, x]``.
+    """
+
+    width: int
+    height: int
+
+    def intensity(self, t_s: float) -> np.ndarray:
+        """(H, W) float64 linear intensity in [0, 1] at time ``t_s``."""
+        ...
+
+    def flow(self, t_s: float) -> np.ndarray:
+        """(2, H, W) float64 motion field ``vx, vy`` in px/s at time ``t_s``."""
+        ...
+
+    def edges(self, t_s: float) -> np.ndarray:
+        """(H, W) bool exact edge map at time ``t_s``."""
+        ...
+
+    def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
+        """Upper bound of the image speed (px/s) over ``[t0_s, t1_s]``."""
+        ...
+
+    def close(self) -> None:
+        """Release resources (GL contexts); idempotent."""
+        ...
+
+
+@runtime_checkable
+class GeometricTruth(Protocol):
+    """Optional: exact per-point ground truth from the scene geometry."""
+
+    def point_truth(self, x: np.ndarray, y: np.ndarray, t_s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Flow and brightness-gradient direction at pixel centres ``(x, y)`` and times ``t_s``.
+
+        Returns
+        -------
+        vx, vy, nx, ny : numpy.ndarray
+            Flow in px/s and the unit normal of the nearest shape boundary,
+            pointing towards the brighter side (the direction of the
+            brightness gradient).
+        """
+        ...
