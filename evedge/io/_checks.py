@@ -25,16 +25,6 @@ def locate_index(i: int) -> str:
     return f"event index {i}"
 
 
-def check_integral(path: Path, name: str, values: np.ndarray, locate: Callable[[int], str]) -> None:
-    """Raise when a float column holds a non-finite or non-integer value."""
-    if values.dtype.kind in "iub":
-        return
-    bad = np.flatnonzero(~np.isfinite(values) | (values != np.rint(values)))
-    if bad.size:
-        i = int(bad[0])
-        raise EventFileError(f"{path}: {locate(i)}: {name}={values[i]!r} is not an integer")
-
-
 def finish_events(
     path: Path,
     x: np.ndarray,

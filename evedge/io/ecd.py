@@ -181,16 +181,16 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
     if bad.size:
         i = int(bad[0])
         col = _COLUMNS[int(np.flatnonzero(~np.isfinite(table[i]))[0])]
-        raise EventFileError(f"{path}: {locate(i)}: column {col!r} is {table[i, _COLUMNS.index(col)]} (not finite)")
+        raise EventFileError(f"{path}: {locate(i)}: column {col!r} is {float(table[i, _COLUMNS.index(col)])} (not finite)")
     for name, col in (("x", x), ("y", y)):
         nonint = np.flatnonzero(col != np.rint(col))
         if nonint.size:
             i = int(nonint[0])
-            raise EventFileError(f"{path}: {locate(i)}: {name}={col[i]!r} is not an integer pixel coordinate")
+            raise EventFileError(f"{path}: {locate(i)}: {name}={float(col[i])} is not an integer pixel coordinate")
     badp = np.flatnonzero((p != 0) & (p != 1))
     if badp.size:
         i = int(badp[0])
-        raise EventFileError(f"{path}: {locate(i)}: polarity p={p[i]!r}, expected 0 or 1")
+        raise EventFileError(f"{path}: {locate(i)}: polarity p={float(p[i]):g}, expected 0 or 1")
 
     frames = None
     images_txt = path.parent / "images.txt"

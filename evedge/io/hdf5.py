@@ -115,9 +115,9 @@ def _open(path: Path):
         f.close()
         raise EventFileError(f"{path}: not an evedge HDF5 file (attribute format={fmt!r}, expected {FORMAT_NAME!r})")
     version = f.attrs.get("format_version")
-    if version is None or int(version) != FORMAT_VERSION:
+    if not (isinstance(version, (int, np.integer)) and int(version) == FORMAT_VERSION):
         f.close()
-        raise EventFileError(f"{path}: format_version={version!r} is not supported (this reader knows {FORMAT_VERSION})")
+        raise EventFileError(f"{path}: format_version={version} is not supported (this reader knows {FORMAT_VERSION})")
     return f
 
 

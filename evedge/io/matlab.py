@@ -86,7 +86,7 @@ def read_mat(
             bad = np.flatnonzero(~np.isfinite(col) | (col != np.rint(col)))
             if bad.size:
                 i = int(bad[0])
-                raise EventFileError(f"{path}: {locate(i)}: column {name!r} = {col[i]!r} is not an integer")
+                raise EventFileError(f"{path}: {locate(i)}: column {name!r} = {float(col[i])} is not an integer")
     x, y, p, t = (matrix[:, j].astype(np.int64) for j in range(4))
     bad = np.flatnonzero((p != 1) & (p != -1))
     if bad.size:

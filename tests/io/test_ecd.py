@@ -1,0 +1,210 @@
+"""Event Camera Dataset text: parsing, every malformed-input error, and the folder writer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evedge.events import Frames, Recording, SensorSize, make_events
+from evedge.io import EventFileError, read_ecd, read_events, write_ecd
+
+SIZE = SensorSize(240, 180)
+
+
+def _write(tmp_path, text: str, name: str = "events.txt"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_parses_columns_and_rounds_seconds_to_microseconds(tmp_path):
+    path = _write(tmp_path, "0.003811000 96 133 0\n0.0038200004 127 171 1\n0.003820501 4 160 1\n")
+    rec = read_ecd(path, sensor_size=SIZE)
+    assert rec.events["t"].tolist() == [3811, 3820, 3821]
+    assert rec.events["x"].tolist() == [96, 127, 4]
+    assert rec.events["y"].tolist() == [133, 171, 160]
+    assert rec.events["p"].tolist() == [False, True, True]
+    assert rec.metadata == {"source": str(path), "format": "ecd-text", "sensor_size_from": "option"}
+
+
+def test_comments_and_blank_lines_are_skipped_and_lines_still_counted(tmp_path):
+    text = "# header\n\n0.1 1 2 0\n# middle\n0.2 3 4 1  # trailing comment\nnan 5 6 1\n"
+    path = _write(tmp_path, text)
+    with pytest.raises(EventFileError, match=r"events\.txt: line 6: column 't' is nan"):
+        read_ecd(path, sensor_size=SIZE)
+    path.write_text(text.replace("nan 5 6 1\n", ""))
+    assert read_ecd(path, sensor_size=SIZE).events["x"].tolist() == [1, 3]
+
+
+def test_malformed_token_names_line_and_column(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1\n0.3 1 abc 0\n")
+    with pytest.raises(EventFileError, match=r"line 3: column 'y' is not a number: 'abc'"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_non_numeric_time_names_line(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\nt=0.2 1 2 1\n")
+    with pytest.raises(EventFileError, match=r"line 2: column 't' is not a number"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_nan_and_inf_name_line(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 inf 2 1\n")
+    with pytest.raises(EventFileError, match=r"line 2: column 'x' is inf \(not finite\)"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_wrong_column_count_on_one_line(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1 7\n0.3 1 2 1\n")
+    with pytest.raises(EventFileError, match=r"line 2: expected 4 columns 't x y p', found 5"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_wrong_column_count_on_every_line(tmp_path):
+    path = _write(tmp_path, "1 0.1 1 2 0\n2 0.2 1 2 1\n")
+    with pytest.raises(EventFileError, match=r"line 1: expected 4 columns 't x y p', found 5"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_truncated_last_line_is_an_error_not_dropped(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1\n0.3 17")
+    with pytest.raises(EventFileError, match=r"line 3 \(the last line, no newline at the end: is the file truncated\?\)"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_last_line_without_newline_but_complete_is_read(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1")
+    assert read_ecd(path, sensor_size=SIZE).events.size == 2
+
+
+def test_unsorted_names_line_and_sort_option_sorts_stably(tmp_path):
+    path = _write(tmp_path, "0.1 1 1 0\n0.3 2 2 1\n0.2 3 3 0\n0.2 4 4 1\n")
+    with pytest.raises(EventFileError, match=r"line 3: timestamps are not sorted.*sort=True"):
+        read_ecd(path, sensor_size=SIZE)
+    rec = read_events(path, sensor_size=SIZE, sort=True)
+    assert rec.events["x"].tolist() == [1, 3, 4, 2]  # equal times keep file order
+    assert rec.metadata["sorted_on_load"] is True
+
+
+def test_out_of_range_coordinate_names_line(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 240 2 1\n")
+    with pytest.raises(EventFileError, match=r"line 2: x=240 is outside the sensor 240x180 \(size from option\)"):
+        read_ecd(path, sensor_size=SIZE)
+    path.write_text("0.1 1 2 0\n0.2 1 -1 1\n")
+    with pytest.raises(EventFileError, match=r"line 2: y=-1 is outside"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_polarity_must_be_zero_or_one(tmp_path):
+    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 -1\n")
+    with pytest.raises(EventFileError, match=r"line 2: polarity p=-1, expected 0 or 1"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_fractional_coordinate_is_an_error(tmp_path):
+    path = _write(tmp_path, "0.1 1.5 2 0\n")
+    with pytest.raises(EventFileError, match=r"line 1: x=1.5 is not an integer"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+def test_non_utf8_bytes_name_the_line(tmp_path):
+    path = tmp_path / "events.txt"
+    path.write_bytes(b"0.1 1 2 0\n0.2 \xff 2 1\n")
+    with pytest.raises(EventFileError, match=r"line 2: column 'x' is not a number"):
+        read_ecd(path, sensor_size=SIZE)
+
+
+@pytest.mark.parametrize("text", ["", "# only a comment\n\n"])
+def test_empty_file_gives_zero_events(tmp_path, text):
+    rec = read_ecd(_write(tmp_path, text), sensor_size=SIZE)
+    assert rec.events.size == 0 and rec.sensor_size == SIZE
+
+
+def test_unknown_sensor_size_asks_for_the_option(tmp_path):
+    with pytest.raises(EventFileError, match=r"sensor size unknown.*--sensor WxH"):
+        read_ecd(_write(tmp_path, "0.1 1 2 0\n"))
+
+
+def _recording(n=200, frames_dtype=np.uint8, seed=1):
+    rng = np.random.default_rng(seed)
+    size = SensorSize(32, 24)
+    ev = make_events(rng.integers(0, 32, n), rng.integers(0, 24, n),
+                     np.sort(rng.integers(0, 3_000_000, n)), rng.integers(0, 2, n))
+    if frames_dtype == np.uint8:
+        images = rng.integers(0, 256, (3, 24, 32), dtype=np.uint8)
+    else:
+        images = rng.random((3, 24, 32))
+    return Recording(ev, size, frames=Frames([0, 1_000_001, 2_500_000], images))
+
+
+def test_folder_round_trip_with_frames(tmp_path):
+    rec = _recording()
+    folder = write_ecd(tmp_path / "seq", rec)
+    assert sorted(p.name for p in folder.iterdir()) == ["events.txt", "images", "images.txt"]
+    assert (folder / "images.txt").read_text().splitlines()[1] == "1.000001000 images/frame_00000001.png"
+    back = read_events(folder)
+    np.testing.assert_array_equal(back.events, rec.events)
+    np.testing.assert_array_equal(back.frames.images, rec.frames.images)
+    np.testing.assert_array_equal(back.frames.t_us, rec.frames.t_us)
+    assert back.sensor_size == rec.sensor_size
+    assert back.metadata["sensor_size_from"] == "frames"
+    assert not list(folder.glob(".*tmp"))  # no temp files left behind
+
+
+def test_writer_line_format_is_exact(tmp_path):
+    ev = make_events([96, 5], [133, 6], [3811, 12_000_001], [0, 1])
+    write_ecd(tmp_path, Recording(ev, SIZE))
+    assert (tmp_path / "events.txt").read_text() == "0.003811000 96 133 0\n12.000001000 5 6 1\n"
+
+
+def test_float_frames_are_quantised_to_uint8(tmp_path):
+    rec = _recording(frames_dtype=np.float64)
+    back = read_events(write_ecd(tmp_path, rec))
+    np.testing.assert_array_equal(back.frames.images, np.rint(rec.frames.images * 255).astype(np.uint8))
+
+
+def test_round_trip_without_frames_needs_the_sensor(tmp_path):
+    rec = Recording(_recording().events, SensorSize(32, 24))
+    folder = write_ecd(tmp_path, rec)
+    with pytest.raises(EventFileError, match="sensor size unknown"):
+        read_events(folder)
+    np.testing.assert_array_equal(read_events(folder, sensor_size="32x24").events, rec.events)
+
+
+def test_frames_smaller_than_event_coordinates_is_an_error(tmp_path):
+    write_ecd(tmp_path, _recording())
+    with open(tmp_path / "events.txt", "a") as fh:
+        fh.write("5.0 40 3 1\n")
+    with pytest.raises(EventFileError, match=r"line 201: x=40 is outside the sensor 32x24 \(size from frames\)"):
+        read_events(tmp_path)
+
+
+def test_sensor_option_disagreeing_with_frames_is_an_error(tmp_path):
+    write_ecd(tmp_path, _recording())
+    with pytest.raises(EventFileError, match=r"240x180 was given but the frames .* are 32x24"):
+        read_events(tmp_path, sensor_size=SIZE)
+
+
+def test_missing_frame_png_names_images_txt_line(tmp_path):
+    write_ecd(tmp_path, _recording())
+    (tmp_path / "images" / "frame_00000002.png").unlink()
+    with pytest.raises(EventFileError, match=r"images\.txt: line 3: cannot read frame"):
+        read_events(tmp_path)
+
+
+def test_folder_without_events_file(tmp_path):
+    (tmp_path / "images.txt").write_text("")
+    with pytest.raises(EventFileError, match=r"not an Event Camera Dataset folder: expected events\.txt"):
+        read_events(tmp_path)
+
+
+def test_folder_with_single_events_star_txt(tmp_path):
+    _write(tmp_path, "0.1 1 2 0\n", name="events_chunk.txt")
+    rec = read_events(tmp_path, sensor_size=SIZE)
+    assert rec.metadata["source"].endswith("events_chunk.txt")
+
+
+def test_writer_rejects_negative_times(tmp_path):
+    ev = make_events([1], [1], [-5], [1])
+    with pytest.raises(ValueError, match="timestamps >= 0"):
+        write_ecd(tmp_path, Recording(ev, SIZE))

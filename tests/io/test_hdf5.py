@@ -1,0 +1,167 @@
+"""The evedge HDF5 format: round trip of everything, determinism, and its errors."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from evedge.events import Recording, SensorSize
+from evedge.io import EventFileError, iter_hdf5_events, read_events, read_hdf5, write_recording
+
+
+def _equal_structured(a, b):
+    assert a.dtype == b.dtype
+    for name in a.dtype.names:
+        np.testing.assert_array_equal(a[name], b[name])  # NaN == NaN here
+
+
+def test_round_trip_with_truth_frames_and_edges(tmp_path, small_recording):
+    rec = small_recording()
+    path = write_recording(tmp_path / "rec.h5", rec)
+    back = read_events(path)
+    np.testing.assert_array_equal(back.events, rec.events)
+    _equal_structured(back.truth, rec.truth)
+    for a, b in ((back.frames, rec.frames), (back.edges, rec.edges)):
+        np.testing.assert_array_equal(a.t_us, b.t_us)
+        np.testing.assert_array_equal(a.images, b.images)
+        assert a.images.dtype == b.images.dtype
+    assert back.sensor_size == rec.sensor_size
+    assert back.metadata == {**rec.metadata, "source": str(path), "format": "evedge-hdf5",
+                             "sensor_size_from": "file metadata"}
+
+
+def test_layout_and_attributes(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    with h5py.File(path, "r") as f:
+        assert f.attrs["format"] == "evedge" and int(f.attrs["format_version"]) == 1
+        assert (int(f.attrs["sensor_width"]), int(f.attrs["sensor_height"])) == (40, 30)
+        assert json.loads(f.attrs["metadata"])["scene"] == "test"
+        assert list(f["events"]) == ["x", "y", "t", "p"]
+        assert list(f["truth"]) == ["lifetime_us", "vx_px_s", "edge_id", "valid", "normal"]
+        assert f["events/t"].dtype == np.int64 and f["events/t"].compression == "gzip"
+        assert list(f["frames"]) == ["t_us", "images"] and f["edges/images"].dtype == bool
+
+
+def test_minimal_and_empty_recordings(tmp_path, small_recording):
+    rec = small_recording(n=0, truth=False, frames=False)
+    back = read_hdf5(write_recording(tmp_path / "e.h5", rec))
+    assert back.events.size == 0 and back.truth is None and back.frames is None and back.edges is None
+
+
+def test_bytes_are_deterministic(tmp_path, small_recording):
+    rec = small_recording()
+    a = write_recording(tmp_path / "a.h5", rec)
+    time.sleep(1.1)  # an embedded timestamp would differ by then
+    b = write_recording(tmp_path / "b.h5", rec)
+    assert hashlib.sha256(a.read_bytes()).hexdigest() == hashlib.sha256(b.read_bytes()).hexdigest()
+
+
+def test_streaming_reader_equals_one_shot(tmp_path, small_recording):
+    rec = small_recording(n=1000)
+    path = write_recording(tmp_path / "rec.h5", rec)
+    chunks = list(iter_hdf5_events(path, chunk_size=300))
+    assert [c.size for c in chunks] == [300, 300, 300, 100]
+    np.testing.assert_array_equal(np.concatenate(chunks), rec.events)
+
+
+def test_not_hdf5(tmp_path):
+    path = tmp_path / "bad.h5"
+    path.write_bytes(b"not hdf5" * 100)
+    with pytest.raises(EventFileError, match=r"bad\.h5: not a readable HDF5 file"):
+        read_events(path)
+
+
+def test_hdf5_but_not_evedge(tmp_path):
+    path = tmp_path / "other.h5"
+    with h5py.File(path, "w") as f:
+        f["events"] = np.zeros(3)
+    with pytest.raises(EventFileError, match=r"not an evedge HDF5 file \(attribute format=None"):
+        read_hdf5(path)
+
+
+def _tamper(path, action):
+    with h5py.File(path, "a") as f:
+        action(f)
+
+
+def test_missing_events_group(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    _tamper(path, lambda f: f.__delitem__("events"))
+    with pytest.raises(EventFileError, match=r"rec\.h5: missing group 'events'"):
+        read_hdf5(path)
+
+
+def test_missing_dataset(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    _tamper(path, lambda f: f.__delitem__("events/p"))
+    with pytest.raises(EventFileError, match=r"missing dataset 'events/p'"):
+        read_hdf5(path)
+
+
+def test_length_mismatch(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording(truth=False, frames=False))
+
+    def shorten(f):
+        x = f["events/x"][:-1]
+        del f["events/x"]
+        f["events/x"] = x
+
+    _tamper(path, shorten)
+    with pytest.raises(EventFileError, match=r"'events/y' has 500 rows, 'events/x' has 499"):
+        read_hdf5(path)
+
+
+def test_truth_length_mismatch(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording(frames=False))
+
+    def shorten(f):
+        v = f["truth/valid"][:-1]
+        del f["truth/valid"]
+        f["truth/valid"] = v
+
+    _tamper(path, shorten)
+    with pytest.raises(EventFileError, match=r"'truth/valid' has 499 rows, there are 500 events"):
+        read_hdf5(path)
+
+
+def test_wrong_version(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    _tamper(path, lambda f: f.attrs.__setitem__("format_version", 2))
+    with pytest.raises(EventFileError, match="format_version=2 is not supported"):
+        read_hdf5(path)
+
+
+def test_unsorted_and_out_of_range_name_the_index(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording(frames=False))
+    _tamper(path, lambda f: f["events/t"].__setitem__(10, 10**9))
+    with pytest.raises(EventFileError, match=r"event index 11: timestamps are not sorted"):
+        read_hdf5(path)
+    rec = read_hdf5(path, sort=True)  # truth follows its events
+    assert rec.events["t"][-1] == 10**9 and rec.truth["edge_id"][-1] == small_recording().truth["edge_id"][10]
+    _tamper(path, lambda f: f["events/y"].__setitem__(3, 30))
+    with pytest.raises(EventFileError, match=r"event index 3: y=30 is outside the sensor 40x30 \(size from file metadata\)"):
+        read_hdf5(path, sort=True)
+
+
+def test_sensor_option_must_match(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    with pytest.raises(EventFileError, match="240x180 was given but the file says 40x30"):
+        read_events(path, sensor_size=SensorSize(240, 180))
+
+
+def test_metadata_must_be_json(tmp_path, small_recording):
+    rec = small_recording(frames=False)
+    rec.metadata["bad"] = object()
+    with pytest.raises(ValueError, match="not JSON-serialisable"):
+        write_recording(tmp_path / "rec.h5", rec)
+    assert list(tmp_path.iterdir()) == []  # no half-written or temp file
+
+
+def test_write_rejects_non_recording(tmp_path):
+    with pytest.raises(TypeError, match="expected a Recording"):
+        write_recording(tmp_path / "x.h5", np.zeros(3))

@@ -1,0 +1,106 @@
+"""MATLAB .mat events [x, y, p(+-1), t(us)]: reading and every malformed-input error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.io
+
+from evedge.events import SensorSize
+from evedge.io import EventFileError, read_events, read_mat
+
+
+def _save(tmp_path, **variables):
+    path = tmp_path / "ev.mat"
+    scipy.io.savemat(path, variables)
+    return path
+
+
+def _matrix():
+    return np.array([[3, 4, 1, 0], [127, 0, -1, 10], [5, 127, 1, 10], [0, 9, -1, 25]], dtype=np.int32)
+
+
+def test_reads_columns_with_dvs128_convention(tmp_path):
+    path = _save(tmp_path, events=_matrix())
+    rec = read_events(path)
+    assert rec.events["x"].tolist() == [3, 127, 5, 0]
+    assert rec.events["y"].tolist() == [4, 0, 127, 9]
+    assert rec.events["p"].tolist() == [True, False, True, False]
+    assert rec.events["t"].tolist() == [0, 10, 10, 25]
+    assert rec.sensor_size == SensorSize(128, 128)
+    assert rec.metadata == {"source": str(path), "format": "mat", "sensor_size_from": "dvs128 .mat convention"}
+
+
+def test_sensor_option_overrides_convention(tmp_path):
+    rec = read_mat(_save(tmp_path, events=_matrix()), sensor_size=SensorSize(200, 150))
+    assert rec.sensor_size == SensorSize(200, 150) and rec.metadata["sensor_size_from"] == "option"
+
+
+def test_integral_doubles_are_accepted(tmp_path):
+    rec = read_mat(_save(tmp_path, events=_matrix().astype(np.float64)))
+    assert rec.events["t"].tolist() == [0, 10, 10, 25]
+
+
+def test_missing_variable_lists_the_variables(tmp_path):
+    with pytest.raises(EventFileError, match=r"ev\.mat: no variable 'events' \(variables: ev, other\)"):
+        read_mat(_save(tmp_path, ev=_matrix(), other=np.zeros(2)))
+
+
+def test_wrong_shape(tmp_path):
+    with pytest.raises(EventFileError, match=r"variable 'events' has shape \(4, 3\), expected N x 4"):
+        read_mat(_save(tmp_path, events=_matrix()[:, :3]))
+
+
+def test_non_integer_value_names_row_and_column(tmp_path):
+    m = _matrix().astype(np.float64)
+    m[2, 3] = 10.5
+    with pytest.raises(EventFileError, match=r"variable 'events' row 2 \(0-based\): column 't' = 10.5 is not an integer"):
+        read_mat(_save(tmp_path, events=m))
+
+
+def test_non_numeric_dtype(tmp_path):
+    with pytest.raises(EventFileError, match="expected integers"):
+        read_mat(_save(tmp_path, events=np.array([["a", "b", "c", "d"]])))
+
+
+def test_polarity_outside_plus_minus_one(tmp_path):
+    m = _matrix()
+    m[1, 2] = 0
+    with pytest.raises(EventFileError, match=r"row 1 \(0-based\): polarity 0, expected -1 or \+1"):
+        read_mat(_save(tmp_path, events=m))
+
+
+def test_out_of_range_names_row(tmp_path):
+    m = _matrix()
+    m[3, 0] = 128
+    with pytest.raises(EventFileError, match=r"row 3 \(0-based\): x=128 is outside the sensor 128x128 \(size from dvs128 \.mat convention\)"):
+        read_mat(_save(tmp_path, events=m))
+
+
+def test_unsorted_names_row_and_sort_option(tmp_path):
+    m = _matrix()
+    m[:, 3] = [0, 30, 10, 10]
+    with pytest.raises(EventFileError, match=r"row 2 \(0-based\): timestamps are not sorted.*sort=True"):
+        read_mat(_save(tmp_path, events=m))
+    rec = read_mat(tmp_path / "ev.mat", sort=True)
+    assert rec.events["t"].tolist() == [0, 10, 10, 30]
+    assert rec.events["x"].tolist() == [3, 5, 0, 127]
+
+
+def test_not_a_mat_file(tmp_path):
+    path = tmp_path / "bad.mat"
+    path.write_bytes(b"this is not matlab data at all" * 10)
+    with pytest.raises(EventFileError, match=r"bad\.mat: not a readable MATLAB \.mat file"):
+        read_events(path)
+
+
+def test_empty_matrix_gives_zero_events(tmp_path):
+    rec = read_mat(_save(tmp_path, events=np.zeros((0, 4), dtype=np.int32)))
+    assert rec.events.size == 0
+
+
+def test_stripes_real_recording(realdata):
+    rec = read_events(realdata("rpg_event_lifetime/stripes.mat"))
+    assert rec.events.size == 340_394
+    assert rec.sensor_size == SensorSize(128, 128)
+    assert rec.events["t"][0] == 0 and rec.events["t"][-1] == 1_197_752
