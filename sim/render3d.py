@@ -475,14 +475,14 @@ class MeshRenderer:
         Notes
         -----
         Definition: in the ``s``-times supersampled face-identifier image, a sample is marked
-        when one of its 4-neighbours shows another face (or the background); a pixel is an edge
+        when one of its 8 neighbours shows another face (or the background); a pixel is an edge
         pixel when any of its ``s x s`` samples is marked. Every face is its own region, so
         silhouettes, occlusion boundaries and the creases between two visible faces of a box
-        are edges, whatever their contrast. This equals "a projected visible edge crosses the
-        closed pixel square" up to ``1/s`` px: an edge within ``1/(2s)`` px of the border
-        between two pixels marks both, and an edge that clips a pixel corner by less than
-        ``1/s`` px may be missed. With ``s = 1`` it is the classic 4-neighbour definition
-        (both sides of an edge are marked).
+        are edges, whatever their contrast. This equals "a visible discontinuity crosses the
+        closed pixel square" up to about ``1/s`` px (the sample spacing): a discontinuity on
+        the border of two pixels marks both, one within ``1/(2s)`` px of the border may mark
+        both, and one that clips a pixel corner by less than about ``1/s`` px may be missed.
+        With ``s = 1`` it is the classic 8-neighbour definition (both sides of an edge marked).
         """
         s = self.supersample
         ids = self._face_ids(t_s)
@@ -493,6 +493,13 @@ class MeshRenderer:
         marked[:, :-1] |= diff_x
         marked[1:, :] |= diff_y
         marked[:-1, :] |= diff_y
+        # diagonal neighbours: an outline that only touches a pixel's corner crosses its square
+        diff_d = ids[1:, 1:] != ids[:-1, :-1]
+        marked[1:, 1:] |= diff_d
+        marked[:-1, :-1] |= diff_d
+        diff_a = ids[1:, :-1] != ids[:-1, 1:]
+        marked[1:, :-1] |= diff_a
+        marked[:-1, 1:] |= diff_a
         return marked.reshape(self.height, s, self.width, s).any(axis=(1, 3))
 
     def max_speed_px_s(self, t0_s: float, t1_s: float, n_samples: int = 5) -> float:

@@ -279,19 +279,21 @@ def test_flow_matches_finite_difference_of_projections(make):
 
 
 # -- edges ----------------------------------------------------------------------------------------------
-def test_edges_of_fronto_parallel_face_are_its_outline(make):
-    r = make([slab(5.0)], cx=119.9, cy=89.9)
+@pytest.mark.parametrize("centre, count", [(119.9, 41**2 - 39**2), (119.5, 42**2 - 38**2)])
+def test_edges_of_fronto_parallel_face_are_its_outline(make, centre, count):
+    r = make([slab(5.0)], cx=centre, cy=centre - 30.0)
     edges = r.edges(0.0)
     assert edges.dtype == bool and edges.shape == (180, 240)
-    # the face projects to [99.9, 139.9] x [69.9, 109.9]; a pixel square [j-.5, j+.5] crosses its
-    # outline iff it meets the closed rectangle and is not inside its interior
-    u0, u1, v0, v1 = 99.9, 139.9, 69.9, 109.9
+    # the face projects to cx + [-20, 20], cy + [-20, 20]; a closed pixel square
+    # [j-.5, j+.5] x [i-.5, i+.5] crosses the outline iff it meets the closed rectangle and is not
+    # inside its interior (an outline on a pixel border, centre 119.5, marks both pixels)
+    u0, u1, v0, v1 = centre - 20, centre + 20, centre - 50, centre - 10
     j = np.arange(240)[None, :]
     i = np.arange(180)[:, None]
     meets = (j + 0.5 >= u0) & (j - 0.5 <= u1) & (i + 0.5 >= v0) & (i - 0.5 <= v1)
     inside = (j - 0.5 > u0) & (j + 0.5 < u1) & (i - 0.5 > v0) & (i + 0.5 < v1)
     np.testing.assert_array_equal(edges, meets & ~inside)
-    assert edges.sum() == 2 * 41 + 2 * 39
+    assert edges.sum() == count
 
 
 def test_edges_lie_on_projected_box_edges(make):
