@@ -1,0 +1,88 @@
+"""The shared event type: make_events, validate_events, sort_events, SensorSize, containers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evedge.events import (
+    EVENT_DTYPE, SENSOR_PRESETS, Frames, Recording, SensorSize, make_events, seconds_to_us, sort_events,
+    validate_events,
+)
+
+
+def test_dtype_is_tonics():
+    assert EVENT_DTYPE.names == ("x", "y", "t", "p")
+    assert [EVENT_DTYPE[n] for n in "xytp"] == [np.dtype(np.int16)] * 2 + [np.dtype(np.int64), np.dtype(bool)]
+
+
+def test_make_events_columns_and_polarity_conventions():
+    ev = make_events([1, 2, 3], [4, 5, 6], [10, 20, 30], [-1, 0, 1])
+    assert ev.dtype == EVENT_DTYPE
+    assert ev["p"].tolist() == [False, False, True]
+    assert make_events([1], [1], [1], [True])["p"].tolist() == [True]
+
+
+@pytest.mark.parametrize("cols, message", [
+    (([1, 2], [1], [1, 2], [0, 1]), "column 'y' must be 1-D of length 2"),
+    (([1.5], [1], [1], [0]), "column 'x' must hold integers"),
+    (([1], [1], [np.nan], [0]), "column 't' has a non-finite value at index 0"),
+    (([40000], [1], [1], [0]), "column 'x' out of int16 range"),
+])
+def test_make_events_errors(cols, message):
+    with pytest.raises(ValueError, match=message):
+        make_events(*cols)
+
+
+def test_seconds_to_us_rounds_to_nearest():
+    assert seconds_to_us([0.0000004, 0.0000006, 0.003820001, 1.9999996]).tolist() == [0, 1, 3820, 2_000_000]
+    with pytest.raises(ValueError, match="non-finite value at index 1"):
+        seconds_to_us([0.0, np.inf])
+
+
+def test_validate_events_wrong_dtype():
+    with pytest.raises(TypeError, match="mine: expected a structured array of dtype"):
+        validate_events(np.zeros(3), name="mine")
+    wrong = np.zeros(2, dtype=[("x", "i4"), ("y", "i4"), ("t", "i8"), ("p", "?")])
+    with pytest.raises(TypeError, match="got \\[\\('x', '<i4'\\)"):
+        validate_events(wrong)
+
+
+def test_validate_events_range_and_order():
+    ev = make_events([0, 5, 2], [0, 1, 2], [0, 10, 20], [1, 0, 1])
+    assert validate_events(ev, SensorSize(6, 3)) is ev
+    with pytest.raises(ValueError, match=r"event 1 has x=5 outside the sensor \(5x3\)"):
+        validate_events(ev, SensorSize(5, 3))
+    ev["t"][2] = 5
+    with pytest.raises(ValueError, match="timestamps are not sorted: event 2 has t=5 us < t=10 us"):
+        validate_events(ev)
+    with pytest.raises(ValueError, match="1-D"):
+        validate_events(ev.reshape(3, 1))
+
+
+def test_sort_events_is_stable():
+    ev = make_events([0, 1, 2, 3, 4], [0] * 5, [5, 1, 5, 1, 0], [1] * 5)
+    assert sort_events(ev)["x"].tolist() == [4, 1, 3, 0, 2]
+
+
+def test_sensor_size_parse_and_errors():
+    assert SensorSize.parse("240x180") == SensorSize(240, 180)
+    assert SensorSize.parse(" DAVIS346 ") == SENSOR_PRESETS["davis346"] == SensorSize(346, 260)
+    assert SensorSize(240, 180).shape == (180, 240)
+    for text in ("240", "240x", "axb", "240x180x2", "-240x180"):
+        with pytest.raises(ValueError, match="expected WIDTHxHEIGHT"):
+            SensorSize.parse(text)
+    with pytest.raises(ValueError, match="SensorSize.width must be in 1..32767"):
+        SensorSize.parse("0x10")
+    with pytest.raises(TypeError, match="SensorSize.height must be an integer"):
+        SensorSize(10, 2.5)
+
+
+def test_frames_and_recording_checks():
+    with pytest.raises(ValueError, match="do not match"):
+        Frames([0, 1], np.zeros((3, 2, 2)))
+    ev = make_events([1], [1], [0], [1])
+    with pytest.raises(ValueError, match="frames are 3x2 but the sensor is 4x4"):
+        Recording(ev, SensorSize(4, 4), frames=Frames([0], np.zeros((1, 2, 3))))
+    with pytest.raises(ValueError, match="truth has 2 rows but there are 1 events"):
+        Recording(ev, SensorSize(4, 4), truth=np.zeros(2, dtype=[("a", "f8")]))
