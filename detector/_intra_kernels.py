@@ -93,7 +93,7 @@ def _two_means(dt, n, label):
 
 @njit(cache=True)
 def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-            min_points, min_inliers, inl_best, inl_tmp, idx):
+            min_points, min_inliers, intercept, inl_best, inl_tmp, idx):
     """RANSAC plane ``dt = a dx + b dy`` through the current event, then least squares.
 
     Candidates pass through the current event and two distinct past points of the
@@ -105,7 +105,9 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
     smaller sum of inlier residuals, then to the earlier trial. With
     ``stop_prob < 1`` the number of trials shrinks adaptively as in
     scikit-image's ``ransac``. The winner is refitted by least squares on its
-    inliers (plane still through the current event).
+    inliers: through the current event, or with ``intercept`` with a free time offset
+    (the plane's slopes are what we need; the offset only absorbs the current event's
+    own timing noise).
 
     Returns ``(ok, a, b, n_inliers)``; ``n_inliers`` counts the current event.
     ``inl_best[i]`` marks the inlier past points.
@@ -174,6 +176,11 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
                             trials = need
     if best_n < min_inliers or best_n == 0:
         return False, np.nan, np.nan, best_n
+    # sums over the inliers; the current event (origin) adds 1 to the count only
+    s1 = 1.0
+    sx = 0.0
+    sy = 0.0
+    st = 0.0
     sxx = 0.0
     sxy = 0.0
     syy = 0.0
@@ -182,15 +189,27 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
     for q in range(m):
         u = idx[q]
         if inl_best[u]:
+            s1 += 1.0
+            sx += dx[u]
+            sy += dy[u]
+            st += dt[u]
             sxx += dx[u] * dx[u]
             sxy += dx[u] * dy[u]
             syy += dy[u] * dy[u]
             sxt += dx[u] * dt[u]
             syt += dy[u] * dt[u]
+    if intercept:
+        # centred sums: least squares with a free time offset (the current event
+        # becomes one point among the inliers instead of a fixed anchor)
+        sxx -= sx * sx / s1
+        sxy -= sx * sy / s1
+        syy -= sy * sy / s1
+        sxt -= sx * st / s1
+        syt -= sy * st / s1
     det = sxx * syy - sxy * sxy
     a = best_a
     b = best_b
-    if det > 0.0:
+    if det > 1e-9 * (sxx * syy):
         a = (sxt * syy - syt * sxy) / det
         b = (syt * sxx - sxt * sxy) / det
     if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
@@ -201,7 +220,7 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
 
 @njit(cache=True)
 def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_us, thr_rel,
-                  max_trials, stop_prob, min_points, min_inliers, seed,
+                  max_trials, stop_prob, min_points, min_inliers, intercept, seed,
                   out_lt, out_vx, out_vy, out_valid):
     """SAE update, window gathering, 2-means and RANSAC for each event in order.
 
@@ -245,7 +264,7 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
                 n += 1
         _two_means(dt, n, label)
         ok, a, b, _ = _ransac(dx, dy, dt, label, n, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
-                              max_trials, stop_prob, min_points, min_inliers, inl_best, inl_tmp, idx)
+                              max_trials, stop_prob, min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
         if ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
@@ -261,7 +280,7 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, out_a, out_b, out_ok, out_inl):
+                 min_inliers, intercept, out_a, out_b, out_ok, out_inl):
     """:func:`_ransac` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -296,7 +315,7 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
             n += 1
         _two_means(dt, n, label)
         ok, a, b, _ = _ransac(dx, dy, dt, label, n, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
-                              max_trials, stop_prob, min_points, min_inliers, inl_best, inl_tmp, idx)
+                              max_trials, stop_prob, min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

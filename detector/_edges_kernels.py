@@ -1,0 +1,42 @@
+"""numba kernel of the lifetime edge image (see :mod:`evedge.detector.edges`)."""
+
+import math
+
+import numpy as np
+from numba import njit
+
+# 8 directions, index = round(angle / 45 degrees) mod 8, image axes (x right, y down)
+_DX = np.array([1, 1, 0, -1, -1, -1, 0, 1], dtype=np.int64)
+_DY = np.array([0, 1, 1, 1, 0, -1, -1, -1], dtype=np.int64)
+
+
+@njit(cache=True)
+def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clear_behind, invalid_clears,
+                 dirx, diry):
+    """Apply events in order to the per-pixel state (flat ``y * width + x``).
+
+    ``last_t`` (int64) is the time of the pixel's newest counted event and
+    ``expiry`` (float64) the end of its life ``t + lifetime``. An event without
+    estimate is skipped, or with ``invalid_clears`` sets its pixel dead
+    (``expiry = t``). With ``clear_behind`` a valid event also ends the life of
+    the 8-neighbour behind it, opposite its flow rounded to 45 degrees.
+    """
+    for k in range(x.shape[0]):
+        pix = y[k] * width + x[k]
+        if not valid[k]:
+            if invalid_clears:
+                last_t[pix] = t[k]
+                expiry[pix] = float(t[k])
+            continue
+        last_t[pix] = t[k]
+        expiry[pix] = t[k] + lt[k]
+        if clear_behind:
+            ang = math.atan2(-vy[k], -vx[k])
+            # nearest of 8 directions; half-way angles round up (counter-clockwise)
+            d = int(math.floor(ang / (math.pi / 4.0) + 0.5)) % 8
+            xx = x[k] + dirx[d]
+            yy = y[k] + diry[d]
+            if 0 <= xx < width and 0 <= yy < height:
+                q = yy * width + xx
+                if expiry[q] > t[k]:
+                    expiry[q] = float(t[k])
