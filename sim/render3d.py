@@ -400,7 +400,7 @@ class MeshRenderer:
         self._renderer = renderer
 
     def _face_ids(self, t_s: float) -> np.ndarray:
-        """Face identifiers (s*H, s*W) int64 of the supersampled image at ``t_s`` (cached)."""
+        """Face identifiers (s*H, s*W) (uint8 or int32) of the supersampled image at ``t_s`` (cached)."""
         t_s = _finite(t_s, "t_s")
         if self._renderer is None:
             raise RuntimeError("MeshRenderer is closed")
@@ -409,8 +409,11 @@ class MeshRenderer:
             pose[:3, 1:3] *= -1.0  # OpenCV camera (y down, looks +z) -> OpenGL (y up, looks -z)
             self._scene.set_pose(self._camera_node, pose)
             color, _ = self._renderer.render(self._scene, flags=self._flat)
-            color = color.astype(np.int64)
-            ids = color[..., 0] | (color[..., 1] << 8) | (color[..., 2] << 16)
+            if len(self._lut) <= 256:  # up to 42 boxes: the red channel holds the identifier
+                ids = np.ascontiguousarray(color[..., 0])
+            else:
+                color = color.astype(np.int32)
+                ids = color[..., 0] | (color[..., 1] << 8) | (color[..., 2] << 16)
             if ids.max() >= len(self._lut):
                 raise RuntimeError("rendered an unknown face colour (multisampling active?)")
             self._cache_t, self._cache_ids = t_s, ids
@@ -429,7 +432,9 @@ class MeshRenderer:
         """
         s = self.supersample
         values = self._lut[self._face_ids(t_s)]
-        return values.reshape(self.height, s, self.width, s).mean(axis=(1, 3))
+        if s == 1:
+            return values
+        return values.reshape(self.height, s, self.width, s).sum(axis=3).sum(axis=1) / (s * s)
 
     def depth(self, t_s: float) -> np.ndarray:
         """Z-depth (H, W) float64 in metres at the pixel centres; ``inf`` where no geometry.
@@ -469,8 +474,20 @@ class MeshRenderer:
         az = -v_cam[2] * inv_z - (wx * y - wy * x)
         return np.stack([self.fx * (ax - x * az), self.fy * (ay - y * az)])
 
-    def edges(self, t_s: float) -> np.ndarray:
+    def edges(self, t_s: float, contrast_only: bool = False) -> np.ndarray:
         """Edge map (H, W) bool at time ``t_s``: pixels crossed by a visible discontinuity.
+
+        Parameters
+        ----------
+        t_s : float
+            Time in seconds.
+        contrast_only : bool, default False
+            If True, only discontinuities across which the intensity changes count (faces of
+            equal intensity, and the background, merge): the edges an event camera can see.
+
+        Returns
+        -------
+        (H, W) bool
 
         Notes
         -----
@@ -486,6 +503,8 @@ class MeshRenderer:
         """
         s = self.supersample
         ids = self._face_ids(t_s)
+        if contrast_only:
+            ids = self._lut[ids]
         marked = np.zeros(ids.shape, dtype=bool)
         diff_x = ids[:, 1:] != ids[:, :-1]
         diff_y = ids[1:, :] != ids[:-1, :]

@@ -325,6 +325,40 @@ def test_edges_lie_on_projected_box_edges(make):
     assert len(np.unique(ids)) == 4  # background and three faces seen
 
 
+def test_contrast_only_edges_skip_invisible_creases(make):
+    # camera to the right of the box sees its -z and +x faces; equal intensities hide the crease
+    tr = CameraTrajectory((1.5, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    same = Box3D((0.0, 0.0, 5.0), (1.0, 1.0, 1.0), (0.3, 0.7, 0.3, 0.3, 0.7, 0.3))
+    r = make([same], trajectory=tr, background=0.7)
+    ids = r._center_ids(0.0)
+    assert set(np.unique(ids)) == {0, 2, 5}  # background, +x face, -z face
+    crease = (ids[:, 1:] == 5) & (ids[:, :-1] == 2) | (ids[:, 1:] == 2) & (ids[:, :-1] == 5)
+    assert crease.sum() > 10
+    all_edges, visible = r.edges(0.0), r.edges(0.0, contrast_only=True)
+    assert np.all(all_edges[:, 1:][crease] | all_edges[:, :-1][crease])
+    # everything has intensity 0.7: no contrast anywhere
+    assert not visible.any()
+    r2 = make([Box3D(same.center_m, same.size_m, (0.3, 0.2, 0.3, 0.3, 0.7, 0.3))], trajectory=tr)
+    visible = r2.edges(0.0, contrast_only=True)
+    np.testing.assert_array_equal(visible, r2.edges(0.0))
+
+
+def test_many_boxes_use_wide_face_identifiers(make):
+    # 50 boxes = 300 faces: identifiers need more than the red channel
+    rng = np.random.default_rng(1)
+    values = rng.uniform(0.0, 1.0, 50)
+    boxes = [Box3D(((k % 10 - 4.5) * 0.4, (k // 10 - 2) * 0.4, 5.0), (0.3, 0.3, 0.3),
+                   (0.0, 0.0, 0.0, 0.0, values[k], 0.0)) for k in range(50)]
+    r = make(boxes, cx=119.5, cy=89.5)
+    image = r.intensity(0.0)
+    for k in range(50):
+        # front face centre at z = 4.85
+        u = 119.5 + FX * (k % 10 - 4.5) * 0.4 / 4.85
+        v = 89.5 + FX * (k // 10 - 2) * 0.4 / 4.85
+        assert image[round(v), round(u)] == pytest.approx(values[k], abs=1e-12)
+    assert r._center_ids(0.0).max() == 6 * 49 + 5  # the -z face of the last box
+
+
 # -- determinism and life cycle --------------------------------------------------------------------------
 def test_rendering_is_deterministic(make):
     tr = CameraTrajectory((0.1, 0.0, 0.0), (0.5, 0.0, 0.1), (0.0, 0.0, 0.05), (0.0, 0.2, 0.1))
