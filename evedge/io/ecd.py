@@ -68,22 +68,21 @@ def _first_bad_line(path: Path, data: bytes, ncols: int, names: tuple[str, ...])
     return ""
 
 
-def _load_table(path: Path, ncols: int, names: tuple[str, ...]) -> tuple[np.ndarray, bytes]:
-    """Parse a whitespace table of numbers; return ``(array (n, ncols), raw bytes)``."""
-    data = path.read_bytes()
+def _load_table(path: Path, ncols: int, names: tuple[str, ...]) -> np.ndarray:
+    """Parse a whitespace table of numbers into an array ``(n, ncols)``."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
             table = np.loadtxt(path, comments="#", dtype=np.float64, ndmin=2, encoding="utf-8")
     except (ValueError, UnicodeDecodeError) as err:
-        message = _first_bad_line(path, data, ncols, names)
+        message = _first_bad_line(path, path.read_bytes(), ncols, names)
         raise EventFileError(message or f"{path}: cannot parse as a table of numbers: {err}") from err
     if table.size == 0:
-        return np.empty((0, ncols)), data
+        return np.empty((0, ncols))
     if table.shape[1] != ncols:
         # every line has the same, wrong, number of columns
-        raise EventFileError(_first_bad_line(path, data, ncols, names))
-    return table, data
+        raise EventFileError(_first_bad_line(path, path.read_bytes(), ncols, names))
+    return table
 
 
 def _read_frames(images_txt: Path) -> Frames:
@@ -171,10 +170,11 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
     path = Path(path)
     if path.is_dir():
         path = find_events_txt(path)
-    table, data = _load_table(path, 4, _COLUMNS)
+    table = _load_table(path, 4, _COLUMNS)
 
     def locate(row: int) -> str:
-        return f"line {_line_of_row(data, row)}"
+        # error path only: re-read the file to turn a data row into a line number
+        return f"line {_line_of_row(path.read_bytes(), row)}"
 
     t_s, x, y, p = table.T
     bad = np.flatnonzero(~np.isfinite(table).all(axis=1))

@@ -226,6 +226,8 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
             metadata = json.loads(f.attrs.get("metadata", "{}"))
         except (TypeError, ValueError) as err:
             raise EventFileError(f"{path}: attribute 'metadata' is not JSON: {err}") from err
+        if not isinstance(metadata, dict):
+            raise EventFileError(f"{path}: attribute 'metadata' must hold a JSON object, got {type(metadata).__name__}")
         truth = None
         if "truth" in f:
             group = _group(f, path, "truth")
