@@ -100,6 +100,7 @@ def _mueggler_kernel(
     lambda_base,
     lambda_gain,
     lambda_decay_per_us,
+    shift_prior_frame,
     seed,
     index0,
     out_lifetime_us,
@@ -123,6 +124,9 @@ def _mueggler_kernel(
         Predicted relative time of the next event at each pixel.
     inlier_threshold : float
         A candidate is acceptable with strictly more inliers than this.
+    shift_prior_frame : bool
+        Store the prediction in the target pixel's window coordinates
+        (a correction; False reproduces the MATLAB code).
     index0 : int
         Global index of the first event (keys the random draws).
     out_* : arrays of len(x)
@@ -234,6 +238,7 @@ def _mueggler_kernel(
         c = 0.0
         vx = 0.0
         vy = 0.0
+        sign = 1.0
         if flag:
             # Refinement: min sum (a x + b y + c t - 1)^2 + lam |theta - prior|^2,
             # a linear least-squares problem, solved in closed form with t
@@ -276,7 +281,9 @@ def _mueggler_kernel(
                 a = r[0]
                 b_ = r[1]
                 c = r[2] / s
+                sign = 1.0
                 if c < 0.0:
+                    sign = -1.0
                     a = -a
                     b_ = -b_
                     c = -c
@@ -303,9 +310,24 @@ def _mueggler_kernel(
             dist = np.sqrt(float(ndx * ndx + ndy * ndy))
             vn = (vx * ndx + vy * ndy) / dist
             target = base + (yi + ndy) * width + (xi + ndx)
-            prior_theta[3 * target] = a
-            prior_theta[3 * target + 1] = b_
-            prior_theta[3 * target + 2] = c
+            if shift_prior_frame:
+                # The same plane in the neighbour's window coordinates
+                # (x_l -> x_l + dx): theta / (1 - a dx - b dy), unflipped.
+                scale = sign * (1.0 - sign * (a * ndx + b_ * ndy))
+                if scale == 0.0:
+                    prior_theta[3 * target] = 0.0
+                    prior_theta[3 * target + 1] = 0.0
+                    prior_theta[3 * target + 2] = 1.0
+                else:
+                    prior_theta[3 * target] = a / scale
+                    prior_theta[3 * target + 1] = b_ / scale
+                    prior_theta[3 * target + 2] = c / scale
+            else:
+                # As the MATLAB code: the sign-flipped plane in this event's own
+                # window coordinates, which are shifted by (dx, dy) for the target.
+                prior_theta[3 * target] = a
+                prior_theta[3 * target + 1] = b_
+                prior_theta[3 * target + 2] = c
             prior_t[target] = dist / vn + tc
         else:
             # No estimate: the MATLAB code stores "no prediction" at the pixel itself.
