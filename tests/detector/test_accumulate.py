@@ -83,7 +83,7 @@ def test_interval_conventions():
     stream = TimeWindowAccumulator(SENSOR, 200)
     stream.process(ev)
     np.testing.assert_array_equal(stream.image_at(300), img)
-    assert stream.image_at(301).sum() == 1  # only the event at 300 is left
+    assert stream.image_at(400).sum() == 1  # (200, 400]: only the event at 300 is left
     # Ties: the later event in the array counts as later.
     tie = make_events([4, 5], [1, 1], [500, 500], [1, 1])
     assert accumulate_count(tie, SENSOR, [500], 1)[0][1, 5]
