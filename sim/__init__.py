@@ -1,1 +1,20 @@
-"""placeholder"""
+"""evedge.sim: event-camera simulator with exact ground truth.
+
+Scenes (TOML, schema in ``sim/SCENES.md``) are rendered analytically (planar
+scenes: exact per-pixel area coverage) or with pyrender (3-D box scenes),
+sampled adaptively and converted to events ESIM-style, with per-event ground
+truth (flow, gradient direction, lifetime) in :data:`TRUTH_DTYPE`.
+
+Main entry points: :func:`simulate`, :func:`load_scene`, :func:`parse_scene`.
+"""
+
+from .converter import ConverterParams, EventConverter
+from .renderer import GeometricTruth, Renderer
+from .scene import SENSOR_PRESETS, Scene, SceneError, load_scene, parse_scene
+from .simulate import edge_map, render_frame, simulate
+from .truth import TRUTH_DTYPE
+
+__all__ = [
+    "ConverterParams", "EventConverter", "GeometricTruth", "Renderer", "SENSOR_PRESETS", "Scene",
+    "SceneError", "TRUTH_DTYPE", "edge_map", "load_scene", "parse_scene", "render_frame", "simulate",
+]

@@ -1,0 +1,158 @@
+"""numba kernels of the event converter (ESIM-style) and its noise and hash RNG.
+
+Counter-based randomness: every random number is a hash (splitmix64) of a
+seed, a pixel index and a per-pixel counter, so results do not depend on how
+the run is cut into time chunks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_K_PIX = np.uint64(0xD1B54A32D192ED03)
+
+
+@njit(cache=True)
+def _splitmix64(x):
+    z = x + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(cache=True)
+def _hash_uniform(seed, a, b):
+    """Uniform in (0, 1) from (seed, a, b); never 0 or 1."""
+    h = _splitmix64(np.uint64(seed) ^ _splitmix64(np.uint64(a) * _K_PIX + np.uint64(b)))
+    return (float(h >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def _half_normal(seed, a, b):
+    """|N(0, 1)| by Box-Muller from two hashed uniforms."""
+    u1 = _hash_uniform(seed, a, 2 * b)
+    u2 = _hash_uniform(seed, a, 2 * b + 1)
+    return abs(math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2))
+
+
+@njit(cache=True)
+def _max_log_change(i0, i1, eps):
+    """max over pixels of |log(i1 + eps) - log(i0 + eps)| (one log, not one per pixel)."""
+    r = 1.0
+    for i in range(i0.shape[0]):
+        a = i0[i] + eps
+        b = i1[i] + eps
+        if a > b:
+            q = a / b
+        else:
+            q = b / a
+        if q > r:
+            r = q
+    return math.log(r)
+
+
+@njit(cache=True)
+def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
+             seq, jitter_s, jitter_seed, fill, out_pix, out_t_true, out_t, out_p):
+    """Events of every pixel between samples ``(t0, i0)`` and ``(t1, i1)`` (linear intensity).
+
+    The log intensity ``L = log(I + eps)`` is interpolated linearly in time
+    between the samples; each crossing of ``lref + cpos`` (ON) or
+    ``lref - cneg`` (OFF) is an event at the interpolated crossing time, and
+    moves ``lref`` by one threshold (several crossings per interval allowed).
+    A crossing less than ``refractory_s`` after the pixel's last emitted event
+    is dropped (``lref`` still moves). The emitted time adds a half-normal
+    latency ``jitter_s |N(0, 1)|`` hashed from (pixel, per-pixel event count).
+
+    ``e_hi = exp(lref + cpos)`` and ``e_lo = exp(lref - cneg)`` let most pixels
+    be skipped without a logarithm. With ``fill`` False nothing is written or
+    mutated and only the count is returned (first pass of two-pass sizing).
+    """
+    n = 0
+    span = t1 - t0
+    for i in range(i0.shape[0]):
+        a = i1[i] + eps
+        # conservative pre-test; the decision itself is made on logarithms below
+        if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
+            continue
+        l1 = math.log(a)
+        l0 = math.log(i0[i] + eps)
+        lr = lref[i]
+        cp = cpos[i]
+        cn = cneg[i]
+        last = last_t[i]
+        k = seq[i]
+        moved = False
+        if l1 >= lr + cp:
+            while l1 >= lr + cp:
+                lr += cp
+                moved = True
+                tc = t0 + (lr - l0) / (l1 - l0) * span
+                if tc - last >= refractory_s:
+                    if fill:
+                        out_pix[n] = i
+                        out_t_true[n] = tc
+                        out_t[n] = tc + jitter_s * _half_normal(jitter_seed, i, k) if jitter_s > 0 else tc
+                        out_p[n] = True
+                    n += 1
+                    k += 1
+                    last = tc
+        elif l1 <= lr - cn:
+            while l1 <= lr - cn:
+                lr -= cn
+                moved = True
+                tc = t0 + (lr - l0) / (l1 - l0) * span
+                if tc - last >= refractory_s:
+                    if fill:
+                        out_pix[n] = i
+                        out_t_true[n] = tc
+                        out_t[n] = tc + jitter_s * _half_normal(jitter_seed, i, k) if jitter_s > 0 else tc
+                        out_p[n] = False
+                    n += 1
+                    k += 1
+                    last = tc
+        if fill and moved:
+            lref[i] = lr
+            e_hi[i] = math.exp(lr + cp)
+            e_lo[i] = math.exp(lr - cn)
+            last_t[i] = last
+            seq[i] = k
+    return n
+
+
+@njit(cache=True)
+def _noise(t1, rate_hz, time_seed, pol_seed, next_t, count, fill, out_pix, out_t, out_p):
+    """Background-activity events before ``t1``: a Poisson process per pixel.
+
+    Arrival ``k`` of pixel ``i`` is ``sum_{j <= k} E_j`` with exponential gaps
+    ``E_j = -log(u(time_seed, i, j)) / rate_hz``; its polarity is ON when
+    ``u(pol_seed, i, k) < 0.5``. ``next_t[i]`` holds arrival ``count[i]``.
+    """
+    n = 0
+    for i in range(next_t.shape[0]):
+        tn = next_t[i]
+        k = count[i]
+        while tn < t1:
+            if fill:
+                out_pix[n] = i
+                out_t[n] = tn
+                out_p[n] = _hash_uniform(pol_seed, i, k) < 0.5
+            n += 1
+            k += 1
+            tn += -math.log(_hash_uniform(time_seed, i, k)) / rate_hz
+        if fill:
+            next_t[i] = tn
+            count[i] = k
+    return n
+
+
+@njit(cache=True)
+def _noise_first_arrivals(rate_hz, time_seed, out):
+    for i in range(out.shape[0]):
+        out[i] = -math.log(_hash_uniform(time_seed, i, 0)) / rate_hz

@@ -1,0 +1,307 @@
+"""Event converter: samples a renderer adaptively and turns log-intensity changes into events.
+
+ESIM-style [1]_ with the additions asked for by the project: per-pixel
+threshold mismatch, refractory period, background-activity noise, latency
+jitter, per-event ground truth, counter-based randomness (chunk-independent)
+and two-pass output sizing (count, then fill) as in esim_torch.
+
+Adaptive sampling: after a sample at ``t`` the next step ``dt`` is proposed as
+``min(1 / min_rate_hz, max_step_px / v_max, dt_prev * min(2, 0.9 lambda C / dL_prev))``
+where ``dL_prev`` is the previous step's largest ``|Delta L|`` over the image,
+``C`` the smallest contrast threshold of the sensor and ``v_max`` the
+renderer's speed bound. The step is then *verified*: if the rendered
+``max |Delta L|`` exceeds ``lambda C`` the step is shrunk and re-rendered.
+So every accepted step changes no pixel's log intensity by more than
+``lambda C`` (unless the step hit ``min_step_s``), ESIM's rule [1]_ made a
+guarantee instead of a prediction.
+
+References
+----------
+.. [1] H. Rebecq, D. Gehrig, D. Scaramuzza, "ESIM: an Open Event Camera
+       Simulator", CoRL 2018.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ._events import _convert, _max_log_change, _noise, _noise_first_arrivals
+from .renderer import GeometricTruth, Renderer
+from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
+from evedge.events import EVENT_DTYPE
+
+
+@dataclass(frozen=True)
+class ConverterParams:
+    """Pixel model and sampling parameters.
+
+    Attributes
+    ----------
+    contrast_pos, contrast_neg : float
+        Nominal ON / OFF thresholds C+ and C- in log-intensity units.
+    contrast_sigma : float
+        Standard deviation of the per-pixel threshold mismatch (log units),
+        drawn once per pixel from the seed; thresholds are clipped to at least
+        ``min_contrast``.
+    min_contrast : float
+        Lower clip of the per-pixel thresholds (default 0.01).
+    refractory_us : float
+        Refractory period; crossings inside it are dropped (not deferred).
+    noise_rate_hz : float
+        Background-activity rate per pixel (Poisson), 0 for none.
+    jitter_us : float
+        Scale of the half-normal latency added to signal events (0 for none).
+    log_eps : float
+        ``L = log(I + log_eps)`` with ``I`` the linear intensity in [0, 1].
+        Default 1e-3: below the darkest intensity of the scenes (0.1) so the
+        log response is nearly pure there, while keeping ``L`` finite for black.
+    lambda_ : float
+        Sampling safety factor (largest ``|Delta L|`` per step <= lambda C).
+    min_rate_hz : float
+        Lowest sampling rate (largest step 1 / min_rate_hz).
+    max_step_px : float
+        Largest image displacement per step (px), from the speed bound.
+    min_step_s : float
+        Smallest step (guards against stalls on discontinuous intensity).
+    """
+
+    contrast_pos: float = 0.2
+    contrast_neg: float = 0.2
+    contrast_sigma: float = 0.0
+    min_contrast: float = 0.01
+    refractory_us: float = 0.0
+    noise_rate_hz: float = 0.0
+    jitter_us: float = 0.0
+    log_eps: float = 1e-3
+    lambda_: float = 0.5
+    min_rate_hz: float = 30.0
+    max_step_px: float = 0.5
+    min_step_s: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"ConverterParams.{name} must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        positive = ("contrast_pos", "contrast_neg", "min_contrast", "log_eps", "lambda_", "min_rate_hz",
+                    "max_step_px", "min_step_s")
+        for name in positive:
+            if getattr(self, name) <= 0:
+                raise ValueError(f"ConverterParams.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"ConverterParams.{name} must be >= 0, got {getattr(self, name)}")
+
+
+def _seeds(seed: int):
+    ss = np.random.SeedSequence(seed)
+    thr, jit, ntime, npol = ss.spawn(4)
+    as_u64 = lambda s: np.uint64(s.generate_state(1, dtype=np.uint64)[0])  # noqa: E731
+    return np.random.default_rng(thr), as_u64(jit), as_u64(ntime), as_u64(npol)
+
+
+class EventConverter:
+    """Streaming simulator of one renderer: ``process(until_s)`` returns the finished events.
+
+    Parameters
+    ----------
+    renderer : Renderer
+    params : ConverterParams
+    seed : int
+        Seeds the threshold mismatch, the noise and the jitter.
+    duration_s : float
+        End of the simulation; the last sample is exactly at ``duration_s``.
+
+    Notes
+    -----
+    Events are returned in time order (ties: pixel index, then exact time).
+    ``process`` advances the samples until at least ``until_s``; the sample
+    times never depend on ``until_s``, and only events that no later sample
+    can precede are returned, so any chunking gives the same bytes.
+    """
+
+    def __init__(self, renderer: Renderer, params: ConverterParams, *, seed: int, duration_s: float):
+        if not isinstance(renderer, Renderer):
+            raise TypeError(f"renderer must implement evedge.sim.renderer.Renderer, got {type(renderer).__name__}")
+        if not isinstance(params, ConverterParams):
+            raise TypeError("params must be a ConverterParams")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        if not (duration_s > 0 and math.isfinite(duration_s)):
+            raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
+        self.renderer = renderer
+        self.params = params
+        self.seed = int(seed)
+        self.duration_s = float(duration_s)
+        self.width = int(renderer.width)
+        self.height = int(renderer.height)
+        self._geometric = isinstance(renderer, GeometricTruth)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to ``t = 0`` with fresh state (same seed: same output)."""
+        p = self.params
+        npix = self.width * self.height
+        rng, self._jitter_seed, self._noise_time_seed, self._noise_pol_seed = _seeds(self.seed)
+        cp = np.full(npix, p.contrast_pos)
+        cn = np.full(npix, p.contrast_neg)
+        if p.contrast_sigma > 0:
+            cp = cp + p.contrast_sigma * rng.standard_normal(npix)
+            cn = cn + p.contrast_sigma * rng.standard_normal(npix)
+        self.cpos = np.maximum(cp, p.min_contrast)
+        self.cneg = np.maximum(cn, p.min_contrast)
+        self._c_min = float(min(self.cpos.min(), self.cneg.min()))
+        self.t = 0.0
+        self._i = np.ascontiguousarray(self.renderer.intensity(0.0), dtype=np.float64).ravel()
+        self._log = None
+        self._flow = None
+        self.lref = np.log(self._i + p.log_eps)
+        self.e_hi = np.exp(self.lref + self.cpos)
+        self.e_lo = np.exp(self.lref - self.cneg)
+        self.last_t = np.full(npix, -np.inf)
+        self.seq = np.zeros(npix, dtype=np.int64)
+        self.noise_next = np.empty(npix)
+        self.noise_count = np.zeros(npix, dtype=np.int64)
+        if p.noise_rate_hz > 0:
+            _noise_first_arrivals(p.noise_rate_hz, self._noise_time_seed, self.noise_next)
+        self._dt = min(1.0 / p.min_rate_hz, 1e-4)
+        self._pending: list[dict[str, np.ndarray]] = []
+        self.n_samples = 0
+        self.n_rejected = 0
+        self.done = False
+
+    # ------------------------------------------------------------------ sampling
+    def _propose(self) -> float:
+        p = self.params
+        dt = min(1.0 / p.min_rate_hz, self._dt)
+        vmax = float(self.renderer.max_speed_px_s(self.t, min(self.duration_s, self.t + 1.0 / p.min_rate_hz)))
+        if vmax > 0:
+            dt = min(dt, p.max_step_px / vmax)
+        return max(dt, p.min_step_s)
+
+    def _step(self) -> None:
+        p = self.params
+        limit = p.lambda_ * self._c_min
+        dt = self._propose()
+        while True:
+            t1 = min(self.t + dt, self.duration_s)
+            i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()
+            dl = _max_log_change(self._i, i1, p.log_eps)
+            if dl <= limit or (t1 - self.t) <= p.min_step_s * 1.0000001:
+                break
+            self.n_rejected += 1
+            dt = max(p.min_step_s, (t1 - self.t) * max(0.1, 0.9 * limit / dl))
+        step = t1 - self.t
+        grow = 2.0 if dl <= 0 else min(2.0, 0.9 * limit / dl)
+        if t1 < self.duration_s:  # the clipped last step says nothing about the next one
+            self._dt = step * grow
+        self._interval(self.t, t1, self._i, i1)
+        self.t = t1
+        self._i = i1
+        self.n_samples += 1
+
+    def _interval(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray) -> None:
+        p = self.params
+        args = (i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg,
+                self.last_t, p.refractory_us * 1e-6, self.seq, p.jitter_us * 1e-6, self._jitter_seed)
+        empty_i = np.empty(0, dtype=np.int64)
+        empty_f = np.empty(0)
+        empty_b = np.empty(0, dtype=np.bool_)
+        n = _convert(*args, False, empty_i, empty_f, empty_f, empty_b)
+        if n:
+            pix = np.empty(n, dtype=np.int64)
+            t_true = np.empty(n)
+            t_emit = np.empty(n)
+            pol = np.empty(n, dtype=np.bool_)
+            _convert(*args, True, pix, t_true, t_emit, pol)
+            truth = self._truth(pix, t_true, t0, t1, i0, i1)
+            self._pending.append(dict(pix=pix, t=t_emit, p=pol, noise=np.zeros(n, dtype=np.bool_), truth=truth))
+        else:
+            self._flow = None
+        if p.noise_rate_hz > 0:
+            nargs = (t1, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
+                     self.noise_count)
+            m = _noise(*nargs, False, empty_i, empty_f, empty_b)
+            if m:
+                pix = np.empty(m, dtype=np.int64)
+                tn = np.empty(m)
+                pol = np.empty(m, dtype=np.bool_)
+                _noise(*nargs, True, pix, tn, pol)
+                self._pending.append(dict(pix=pix, t=tn, p=pol, noise=np.ones(m, dtype=np.bool_),
+                                          truth=empty_truth(m)))
+
+    def _truth(self, pix, t_true, t0, t1, i0, i1) -> np.ndarray:
+        x = pix % self.width
+        y = pix // self.width
+        out = np.empty(pix.shape[0], dtype=TRUTH_DTYPE)
+        if self._geometric:
+            vx, vy, nx, ny = self.renderer.point_truth(x.astype(np.float64), y.astype(np.float64), t_true)
+        else:
+            # sampled truth: flow and log-gradient interpolated between the two samples
+            eps = self.params.log_eps
+            f0 = self._flow if self._flow is not None else np.asarray(self.renderer.flow(t0), dtype=np.float64)
+            f1 = np.asarray(self.renderer.flow(t1), dtype=np.float64)
+            self._flow = f1
+            w = ((t_true - t0) / (t1 - t0)) if t1 > t0 else np.zeros_like(t_true)
+            vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
+            vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
+            l0 = np.log(i0.reshape(self.height, self.width) + eps)
+            l1 = np.log(i1.reshape(self.height, self.width) + eps)
+            g0x, g0y = gradient_direction(l0, x, y)
+            g1x, g1y = gradient_direction(l1, x, y)
+            gx = (1 - w) * np.nan_to_num(g0x) + w * np.nan_to_num(g1x)
+            gy = (1 - w) * np.nan_to_num(g0y) + w * np.nan_to_num(g1y)
+            norm = np.hypot(gx, gy)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                nx = np.where(norm > 0, gx / norm, np.nan)
+                ny = np.where(norm > 0, gy / norm, np.nan)
+        out["vx_px_s"] = vx
+        out["vy_px_s"] = vy
+        out["nx"] = nx
+        out["ny"] = ny
+        out["lifetime_us"] = lifetime_us(vx, vy, nx, ny)
+        out["is_signal"] = True
+        return out
+
+    # ------------------------------------------------------------------ output
+    def _flush(self, cut_us: int | None) -> tuple[np.ndarray, np.ndarray]:
+        if not self._pending:
+            return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
+        pix = np.concatenate([c["pix"] for c in self._pending])
+        t = np.concatenate([c["t"] for c in self._pending])
+        pol = np.concatenate([c["p"] for c in self._pending])
+        noise = np.concatenate([c["noise"] for c in self._pending])
+        truth = np.concatenate([c["truth"] for c in self._pending])
+        t_us = np.rint(t * 1e6).astype(np.int64)
+        if cut_us is None:
+            done = t_us <= int(round(self.duration_s * 1e6))
+            keep = np.zeros_like(done)
+        else:
+            done = t_us < cut_us
+            keep = ~done
+        self._pending = []
+        if np.any(keep):
+            self._pending.append(dict(pix=pix[keep], t=t[keep], p=pol[keep], noise=noise[keep], truth=truth[keep]))
+        pix, t, pol, noise, truth, t_us = pix[done], t[done], pol[done], noise[done], truth[done], t_us[done]
+        order = np.lexsort((noise, t, pix, t_us))
+        ev = np.empty(order.shape[0], dtype=EVENT_DTYPE)
+        ev["x"] = pix[order] % self.width
+        ev["y"] = pix[order] // self.width
+        ev["t"] = t_us[order]
+        ev["p"] = pol[order]
+        return ev, truth[order]
+
+    def process(self, until_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Advance to at least ``until_s`` (or the end) and return the finished ``(events, truth)``."""
+        if self.done:
+            return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
+        while self.t < min(until_s, self.duration_s):
+            self._step()
+        if self.t >= self.duration_s:
+            self.done = True
+            return self._flush(None)
+        # events from later samples have t >= self.t, so rint(t * 1e6) >= floor(self.t * 1e6)
+        return self._flush(int(math.floor(self.t * 1e6)))
