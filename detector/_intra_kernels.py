@@ -109,7 +109,9 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
     (the plane's slopes are what we need; the offset only absorbs the current event's
     own timing noise).
 
-    Returns ``(ok, a, b, n_inliers)``; ``n_inliers`` counts the current event.
+    Returns ``(ok, a, b, n_inliers)``; ``n_inliers`` counts the current event and is
+    -1 when the kept cluster is degenerate (too few points, or no sample off the
+    line through the current event).
     ``inl_best[i]`` marks the inlier past points.
     """
     m = 0
@@ -119,7 +121,7 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
             idx[m] = i
             m += 1
     if m < 2 or m + 1 < min_points:
-        return False, np.nan, np.nan, 0
+        return False, np.nan, np.nan, -1
     best_n = 0
     best_cost = np.inf
     best_a = np.nan
@@ -174,7 +176,10 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
                         need = math.ceil(math.log(1.0 - stop_prob) / math.log(denom))
                         if need < trials:
                             trials = need
-    if best_n < min_inliers or best_n == 0:
+    if best_n == 0:
+        # every sample was collinear with the current event: no plane at all
+        return False, np.nan, np.nan, -1
+    if best_n < min_inliers:
         return False, np.nan, np.nan, best_n
     # sums over the inliers; the current event (origin) adds 1 to the count only
     s1 = 1.0
@@ -219,8 +224,30 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
 
 
 @njit(cache=True)
+def _fit_points(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                min_inliers, intercept, fallback, inl_best, inl_tmp, idx):
+    """2-means, then RANSAC on the current event's cluster; returns ``(ok, a, b)``.
+
+    With ``fallback``, a degenerate cluster (see :func:`_ransac`) is replaced by
+    all the window's points and RANSAC runs once more with the same random
+    stream. This happens on a clean ramp whose middle row of timestamps 2-means
+    gives to the old cluster (an axis-aligned edge: the kept pixels then all lie
+    on the current event's row or column).
+    """
+    _two_means(dt, n, label)
+    ok, a, b, nin = _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
+                            min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
+    if nin < 0 and fallback:
+        for i in range(n):
+            label[i] = 1
+        ok, a, b, nin = _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
+                                min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
+    return ok, a, b
+
+
+@njit(cache=True)
 def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_us, thr_rel,
-                  max_trials, stop_prob, min_points, min_inliers, intercept, seed,
+                  max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
                   out_lt, out_vx, out_vy, out_valid):
     """SAE update, window gathering, 2-means and RANSAC for each event in order.
 
@@ -262,9 +289,9 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
                 dy[n] = oy
                 dt[n] = float(v - tk)
                 n += 1
-        _two_means(dt, n, label)
-        ok, a, b, _ = _ransac(dx, dy, dt, label, n, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
-                              max_trials, stop_prob, min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
+        ok, a, b = _fit_points(dx, dy, dt, label, n, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
+                               max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
+                               inl_best, inl_tmp, idx)
         if ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
@@ -280,7 +307,7 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, intercept, out_a, out_b, out_ok, out_inl):
+                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl):
     """:func:`_ransac` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -313,9 +340,9 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
             dt[n] = v - tc
             cell[n] = q
             n += 1
-        _two_means(dt, n, label)
-        ok, a, b, _ = _ransac(dx, dy, dt, label, n, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
-                              max_trials, stop_prob, min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
+        ok, a, b = _fit_points(dx, dy, dt, label, n, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
+                               max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
+                               inl_best, inl_tmp, idx)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

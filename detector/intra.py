@@ -11,6 +11,11 @@ For each event (normally one that passed :mod:`evedge.detector.buffer`):
    centroids the window minimum and the current time, keeps the cluster holding
    the current event; a timestamp equidistant from both centroids joins that
    cluster, and a window whose timestamps all equal the current one is one cluster;
+   when that cluster is degenerate (fewer than ``min_points`` points, or all on
+   one line through the event, which happens on a clean ramp behind an
+   axis-aligned edge when 2-means gives the middle row of timestamps to the old
+   cluster), RANSAC uses all the window's points instead
+   (``fallback_all_points``, our addition);
 4. RANSAC: candidate plane ``t = t_e + a (x - x_e) + b (y - y_e)`` through the
    current event and two distinct random past points of the kept cluster
    (collinear samples skipped); residual of a point is the time distance from its
@@ -116,6 +121,10 @@ class IntraParams:
     refit_intercept : bool
         Least-squares refit with a free time offset (default) or through the
         current event (the paper's plane contains the current event).
+    fallback_all_points : bool
+        When the 2-means cluster is degenerate (fewer than ``min_points`` points,
+        or all on one line through the current event), run RANSAC on all the
+        window's points instead of giving up (default True).
     seed : int
         Seed of the counter-based random stream, 0 <= seed < 2**63.
     per_polarity : bool
@@ -131,6 +140,7 @@ class IntraParams:
     min_points: int = 5
     min_inliers: int = 5
     refit_intercept: bool = True
+    fallback_all_points: bool = True
     seed: int = 0
     per_polarity: bool = True
 
@@ -158,7 +168,7 @@ class IntraParams:
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{own}.{name} must be a bool, got {getattr(self, name)!r}")
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed"):
@@ -219,7 +229,8 @@ class IntraPixelLifetime:
         _intra_stream(x, y, t, p, self._n_seen, self.sae.times_us.reshape(-1), self.sensor_size.width,
                       self.sensor_size.height, pr.per_polarity, pr.window_size // 2, pr.delta_px,
                       pr.inlier_threshold_us, pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability,
-                      pr.min_points, pr.min_inliers, pr.refit_intercept, pr.seed, lt, vx, vy, valid)
+                      pr.min_points, pr.min_inliers, pr.refit_intercept, pr.fallback_all_points, pr.seed,
+                      lt, vx, vy, valid)
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time
@@ -313,7 +324,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     delta = params.delta_px if use_intra else 0.0
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
-                 params.min_inliers, params.refit_intercept, a, b, ok, inl)
+                 params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl)
     return a, b, ok, inl.reshape(k, side, side)
 
 
