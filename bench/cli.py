@@ -1,0 +1,134 @@
+"""Command line: ``evedge bench ...`` (the paper's experiments) and ``evedge demo`` (the main job)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import click
+
+_OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
+                    help="Output directory.")
+_QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
+_NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
+_SEED = click.option("--seed", type=int, default=0, show_default=True, help="Seed of simulations and RANSAC study.")
+
+
+@click.group()
+def bench() -> None:
+    """The paper's experiments: metrics, figures, tables and an HTML report."""
+
+
+def _summary(results: dict, t0: float) -> None:
+    for v in results.get("verdicts", []):
+        click.echo(f"  [{v['status'].upper():11s}] {v['claim']}")
+    for name, err in results.get("errors", {}).items():
+        click.echo(f"  experiment {name} FAILED: {err}", err=True)
+    click.echo(f"wall time {time.perf_counter() - t0:.1f} s")
+    click.echo(f"report: {Path(results['report']).resolve()}")
+
+
+@bench.command()
+@_OUT
+@_QUICK
+@_NOPROG
+@_SEED
+def paper(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
+    """Run every experiment; write OUT/report.html and OUT/results.json."""
+    from .paper import run_paper
+
+    t0 = time.perf_counter()
+    cmd = "evedge bench paper" + (" --quick" if quick else "")
+    results = run_paper(out, quick=quick, progress=not no_progress, seed=seed, command=cmd)
+    _summary(results, t0)
+    if results.get("errors"):
+        sys.exit(1)
+
+
+@bench.command()
+@_OUT
+@_QUICK
+@_NOPROG
+@_SEED
+@click.option("--repetitions", type=int, default=None, help="Windows per noise level (default 1000, quick 100).")
+def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: int | None) -> None:
+    """RANSAC inlier F-measure and lifetime error vs. timestamp noise (paper fig. 7)."""
+    from .exp_ransac import RansacStudyParams, run_ransac_study
+
+    params = None
+    if repetitions is not None or seed:
+        reps = repetitions if repetitions is not None else (100 if quick else 1000)
+        params = RansacStudyParams(repetitions=reps, seed=seed)
+    res = run_ransac_study(out, params=params, quick=quick, progress=not no_progress)
+    click.echo("\n".join(res["figures"]))
+
+
+@bench.command()
+@_OUT
+@_QUICK
+@_NOPROG
+@_SEED
+def lifetime(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
+    """Lifetime histograms and images on real and simulated stripes (paper figs. 4-5)."""
+    from .exp_lifetime import run_lifetime
+
+    res = run_lifetime(out, quick=quick, progress=not no_progress, seed=seed)
+    click.echo("\n".join(res["figures"]))
+
+
+@bench.command()
+@_OUT
+@_QUICK
+@_NOPROG
+@_SEED
+@click.option("--scene", default="shapes_translation", show_default=True, help="Scene in scenes/.")
+def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str) -> None:
+    """CDM over time against Canny and exact edges, box plots per section (paper fig. 9)."""
+    from .exp_similarity import run_similarity
+
+    res = run_similarity(out, scene=scene, quick=quick, progress=not no_progress, seed=seed)
+    click.echo("\n".join(res["figures"]))
+
+
+@bench.command()
+@_OUT
+@_QUICK
+@_NOPROG
+def qualitative(out: Path, quick: bool, no_progress: bool) -> None:
+    """Grey, Canny, proposed, Mueggler, 1 ms and 30 ms side by side (paper figs. 1, 8), on slider_depth."""
+    from .exp_qualitative import run_qualitative
+
+    res = run_qualitative(out, quick=quick, progress=not no_progress)
+    click.echo("\n".join(res["figures"]))
+
+
+@bench.command()
+@_OUT
+@_QUICK
+@_NOPROG
+@click.option("--path", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Recording with frames (default ../shared/realdata/slider_depth).")
+def real(out: Path, quick: bool, no_progress: bool, path: Path | None) -> None:
+    """CDM against Canny at the real frames that fall inside the events."""
+    from .exp_real import run_real
+
+    res = run_real(out, path=path, quick=quick, progress=not no_progress)
+    click.echo("\n".join(res["figures"]))
+
+
+@click.command()
+@click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("demo_out"),
+              show_default=True, help="Output directory.")
+@_NOPROG
+@_SEED
+def demo(out: Path, no_progress: bool, seed: int) -> None:
+    """The main job: a reduced but complete run of the paper's experiments, with a report."""
+    from .paper import run_paper
+
+    t0 = time.perf_counter()
+    click.echo(f"evedge demo: running the paper's experiments (reduced sizes) into {out}/")
+    results = run_paper(out, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
+    _summary(results, t0)
+    if results.get("errors"):
+        sys.exit(1)

@@ -1,0 +1,203 @@
+"""Experiment 3: similarity over time on a slow-then-fast sequence (paper fig. 9).
+
+The simulated ``shapes_translation`` scene moves slowly, then fast. At every
+frame time (from 30 ms after the first event on, so that no method is judged
+before its window could fill) each method's edge map is compared by CDM with
+
+* Canny on the clean grey frame, for each Canny setting (``canny_<name>``), and
+* the simulator's exact edge map at that time (``exact``).
+
+Box plots per section (slow, fast) as in the paper; medians per section,
+truth and method go to ``results.json`` under ``cdm``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._files import save_figure, write_csv_atomic, write_json_atomic
+from ._plot import METHOD_COLOURS, pyplot
+from .canny import CANNY_SETTINGS
+from .exp_real import count_for
+from .frame_eval import canny_references, cdm_table, summarise
+from .methods import METHOD_LABELS, METHODS, edge_maps
+
+#: Frames earlier than this after the first event are skipped (the longest window, 30 ms).
+WARMUP_US = 30_000
+
+
+def scenes_dir() -> Path:
+    """The repository's ``scenes/`` directory."""
+    return Path(__file__).resolve().parents[1] / "scenes"
+
+
+def simulate_scene(name: str, *, seed: int = 0, duration_s: float | None = None,
+                   frame_rate_hz: float | None = None, progress: bool = True):
+    """Load ``scenes/<name>.toml`` and simulate it (events, truth, frames, exact edges)."""
+    from evedge.sim import load_scene, simulate
+
+    path = scenes_dir() / f"{name}.toml"
+    if not path.exists():
+        raise FileNotFoundError(f"simulate_scene: scene file not found: {path}")
+    kwargs = {"seed": seed, "duration_s": duration_s, "progress": progress}
+    if frame_rate_hz is not None:
+        kwargs["frame_rate_hz"] = frame_rate_hz
+    return simulate(load_scene(path), **kwargs)
+
+
+def sections_us(metadata: dict, t_end_us: int) -> dict[str, tuple[int, int]]:
+    """The named time sections (e.g. slow, fast) of a simulated recording, in microseconds.
+
+    Accepts ``metadata["sections"]`` as a mapping name -> (start, end) or a list of
+    mappings with ``name`` and ``start``/``end`` (keys ending in ``_s`` are seconds,
+    ``_us`` microseconds; bare ``start``/``end`` are taken as seconds). Without
+    sections the whole recording is one section ``all``.
+    """
+    sec = metadata.get("sections") if isinstance(metadata, dict) else None
+    out: dict[str, tuple[int, int]] = {}
+
+    def _time(d: dict, key: str):
+        for suffix, scale in (("_us", 1.0), ("_s", 1e6), ("", 1e6)):
+            if key + suffix in d:
+                return int(round(float(d[key + suffix]) * scale))
+        raise ValueError(f"sections: entry {d} lacks {key}")
+
+    if isinstance(sec, dict):
+        for name, val in sec.items():
+            if isinstance(val, dict):
+                out[name] = (_time(val, "start"), _time(val, "end"))
+            else:
+                a, b = val
+                out[name] = (int(round(float(a) * 1e6)), int(round(float(b) * 1e6)))
+    elif isinstance(sec, (list, tuple)):
+        for val in sec:
+            out[str(val["name"])] = (_time(val, "start"), _time(val, "end"))
+    if not out:
+        out["all"] = (0, int(t_end_us) + 1)
+    return out
+
+
+def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation", quick: bool = False,
+                   progress: bool = True, seed: int = 0, duration_s: float | None = None,
+                   frame_rate_hz: float | None = None, max_frames: int | None = None,
+                   keep_maps: bool = False) -> dict:
+    """CDM over time against Canny and exact edges, per method; box plots per section.
+
+    Parameters
+    ----------
+    out_dir : path
+    recording : Recording, optional
+        A simulated recording with ``frames`` and ``edges``; simulated from
+        ``scene`` when not given.
+    scene : str
+        Scene name in ``scenes/`` (default ``shapes_translation``).
+    quick : bool
+        Only the first Canny setting and at most 24 frames (evenly spread).
+    progress : bool
+    seed, duration_s, frame_rate_hz
+        Passed to the simulator.
+    max_frames : int, optional
+        Evaluate at most this many frames, evenly spread over the sequence.
+    keep_maps : bool
+        Also return grey frames and maps (for the qualitative panel).
+
+    Returns
+    -------
+    dict
+        ``{"scenes": {scene: {"sections_us": {...}, "frame_t_us": [...],
+        "frame_section": [...], "cdm_per_frame": {truth: {method: [...]}},
+        "cdm": {truth: {method: {section: summary}}}, "count_n": int}}, "figures": [...]}``
+    """
+    out_dir = Path(out_dir)
+    rec = recording if recording is not None else simulate_scene(
+        scene, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=progress)
+    if rec.frames is None:
+        raise ValueError("run_similarity: the recording has no grey frames")
+    t_first = int(rec.events["t"][0]) if rec.events.size else 0
+    t_last = int(rec.events["t"][-1]) if rec.events.size else 0
+    ft = rec.frames.t_us
+    idx = np.flatnonzero((ft >= t_first + WARMUP_US) & (ft <= t_last))
+    if max_frames is None and quick:
+        max_frames = 24
+    if max_frames is not None and idx.size > max_frames:
+        idx = idx[np.unique(np.linspace(0, idx.size - 1, max_frames).round().astype(int))]
+    if idx.size == 0:
+        raise ValueError("run_similarity: no frame lies within the events (after the 30 ms warm-up)")
+    times = ft[idx]
+    grey = rec.frames.images[idx]
+    settings = CANNY_SETTINGS[:1] if quick else CANNY_SETTINGS
+    refs = canny_references(grey, settings)
+    if rec.edges is not None:
+        et = rec.edges.t_us
+        pos = np.searchsorted(et, times)
+        if np.all(pos < et.size) and np.array_equal(et[np.minimum(pos, et.size - 1)], times):
+            refs["exact"] = rec.edges.images[pos].astype(bool)
+    count_n = count_for(refs)
+    maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=METHODS, count_n=count_n)
+    table = cdm_table(maps, refs, progress=progress, desc=f"CDM {scene}")
+    sections = sections_us(rec.metadata, t_last)
+    frame_section = []
+    for t in times:
+        hit = [name for name, (a, b) in sections.items() if a <= t < b]
+        frame_section.append(hit[0] if hit else None)
+    frame_section = np.array(frame_section, dtype=object)
+    summary = {}
+    for ref, per in table.items():
+        summary[ref] = {}
+        for m, v in per.items():
+            summary[ref][m] = {name: summarise(v[frame_section == name]) for name in sections}
+            summary[ref][m]["all"] = summarise(v)
+    rows = [[scene, ref, m, i, int(times[i]), frame_section[i], float(v[i])]
+            for ref, per in table.items() for m, v in per.items() for i in range(len(times))]
+    write_csv_atomic(out_dir / f"similarity_{scene}.csv",
+                     ["scene", "reference", "method", "frame", "t_us", "section", "cdm"], rows)
+    figures = _plot(out_dir, scene, times, frame_section, sections, table)
+    res = {"sections_us": sections, "frame_t_us": times, "frame_section": list(frame_section),
+           "canny_settings": [s.as_dict() for s in settings], "cdm_per_frame": table, "cdm": summary,
+           "count_n": count_n, "n_events": int(rec.events.size),
+           "metadata": {k: v for k, v in rec.metadata.items() if isinstance(v, (str, int, float, bool))}}
+    out = {"scenes": {scene: res}, "figures": [str(p) for p in figures]}
+    write_json_atomic(out_dir / f"similarity_{scene}.json", out)
+    if keep_maps:
+        out["_maps"] = {"grey": grey, "times": times, "canny": refs[next(iter(refs))], "maps": maps,
+                        "frame_section": frame_section, "exact": refs.get("exact")}
+    return out
+
+
+def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> list[Path]:
+    plt = pyplot()
+    paths = []
+    refs = list(table)
+    fig, axes = plt.subplots(len(refs), 1, figsize=(9, 2.6 * len(refs)), squeeze=False, sharex=True)
+    for ax, ref in zip(axes[:, 0], refs):
+        for m, v in table[ref].items():
+            ax.plot(np.asarray(times) / 1e6, v, marker=".", ms=3, lw=1, color=METHOD_COLOURS.get(m),
+                    label=METHOD_LABELS[m])
+        for name, (a, b) in sections.items():
+            if name != "all":
+                ax.axvline(a / 1e6, color="k", lw=0.5, ls=":")
+        ax.set_ylabel(f"CDM vs {ref}", fontsize=8)
+        ax.set_ylim(0, 100)
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[0, 0].legend(fontsize=7, ncol=3)
+    fig.suptitle(f"{scene}: similarity over time (sections: {', '.join(sections)})")
+    paths.append(save_figure(fig, out_dir / f"similarity_{scene}_over_time.png"))
+
+    names = [n for n in sections]
+    fig, axes = plt.subplots(len(refs), len(names), figsize=(4.5 * len(names), 3.0 * len(refs)), squeeze=False)
+    for r, ref in enumerate(refs):
+        for c, name in enumerate(names):
+            ax = axes[r, c]
+            methods = list(table[ref])
+            data = [np.asarray(table[ref][m])[frame_section == name] for m in methods]
+            bp = ax.boxplot(data, patch_artist=True, widths=0.6)
+            for patch, m in zip(bp["boxes"], methods):
+                patch.set_facecolor(METHOD_COLOURS.get(m, "w"))
+            ax.set_xticks(range(1, len(methods) + 1), [m.replace("acc_", "") for m in methods], fontsize=7)
+            ax.set_title(f"{name} section, vs {ref}", fontsize=9)
+            ax.set_ylim(0, 100)
+    fig.suptitle(f"{scene}: CDM per section")
+    paths.append(save_figure(fig, out_dir / f"similarity_{scene}_boxplots.png"))
+    return paths

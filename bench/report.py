@@ -1,0 +1,201 @@
+"""One self-contained HTML page from the results: figures inlined as base64 PNG.
+
+The page carries the verdicts on the paper's claims (computed in
+:mod:`evedge.bench.verdicts`), tables of the headline numbers, every
+parameter, the versions of the software and the date.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+import numpy as np
+
+from ._files import write_text_atomic
+from .methods import METHOD_LABELS
+
+_CSS = """
+body{font-family:system-ui,sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222}
+h1{font-size:1.5em} h2{border-bottom:1px solid #ccc;margin-top:1.6em} h3{font-size:1.05em}
+table{border-collapse:collapse;margin:0.5em 0;font-size:0.85em}
+td,th{border:1px solid #ccc;padding:2px 6px;text-align:right} th{background:#f3f3f3}
+td.l,th.l{text-align:left}
+.holds{background:#dff5df} .fails{background:#fadddd} .nc{background:#eee}
+img{max-width:100%;border:1px solid #eee;margin:0.3em 0}
+pre{background:#f7f7f7;padding:0.5em;font-size:0.8em;overflow-x:auto}
+.small{font-size:0.85em;color:#555}
+"""
+
+
+def _e(x) -> str:
+    return html.escape(str(x))
+
+
+def _num(x, nd=2) -> str:
+    if x is None:
+        return "n/a"
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return _e(x)
+    return "n/a" if not np.isfinite(v) else f"{v:.{nd}f}"
+
+
+def _img(path) -> str:
+    p = Path(path)
+    if not p.exists():
+        return f"<p class='small'>(figure missing: {_e(p.name)})</p>"
+    data = base64.b64encode(p.read_bytes()).decode("ascii")
+    return f"<img alt='{_e(p.name)}' src='data:image/png;base64,{data}'>"
+
+
+def _table(header, rows, left_cols=1) -> str:
+    th = "".join(f"<th class='{'l' if i < left_cols else ''}'>{_e(h)}</th>" for i, h in enumerate(header))
+    body = []
+    for row in rows:
+        tds = "".join(f"<td class='{'l' if i < left_cols else ''}'>{c}</td>" for i, c in enumerate(row))
+        body.append(f"<tr>{tds}</tr>")
+    return f"<table><tr>{th}</tr>{''.join(body)}</table>"
+
+
+def _verdict_section(verdicts: list[dict]) -> str:
+    rows = []
+    for v in verdicts:
+        cls = {"holds": "holds", "fails": "fails"}.get(v["status"], "nc")
+        rows.append([_e(v["claim"]), f"<b>{_e(v['status'].upper())}</b>", _e(v["evidence"])])
+    rows_html = [f"<tr class='{'holds' if v['status'] == 'holds' else 'fails' if v['status'] == 'fails' else 'nc'}'>"
+                 f"<td class='l'>{r[0]}</td><td class='l'>{r[1]}</td><td class='l'>{r[2]}</td></tr>"
+                 for v, r in zip(verdicts, rows)]
+    n_h = sum(v["status"] == "holds" for v in verdicts)
+    n_f = sum(v["status"] == "fails" for v in verdicts)
+    head = (f"<p>{n_h} claims hold, {n_f} fail, {len(verdicts) - n_h - n_f} not checked in this run. "
+            "Each verdict is computed from the numbers below (see <code>evedge.bench.verdicts</code> "
+            "for the exact rules).</p>")
+    return head + ("<table><tr><th class='l'>claim</th><th class='l'>verdict</th><th class='l'>evidence</th></tr>"
+                   + "".join(rows_html) + "</table>")
+
+
+def _fmeasure_section(fm: dict) -> str:
+    parts = []
+    for kind, per in fm.items():
+        any_res = next(iter(per.values()))
+        levels = any_res["noise_px"]
+        header = ["method"] + [f"F @ {lv:g}" for lv in levels] + [f"err @ {lv:g}" for lv in levels]
+        rows = []
+        for label, res in per.items():
+            rows.append([_e(label)] + [_num(v, 3) for v in res["f_measure"]]
+                        + [_num(v, 3) for v in res["lifetime_rel_error_mean"]])
+        parts.append(f"<h3>{_e(kind)} noise</h3>" + _table(header, rows))
+    return "".join(parts)
+
+
+def _lifetime_section(lt: dict, datasets: dict) -> str:
+    rows = []
+    for ds, per in lt.items():
+        for m, res in per.items():
+            peaks = res.get("peaks") or []
+            ptxt = "; ".join(f"{p['mode'] / 1e3:.2f} ms (median {p['median'] / 1e3:.2f}, MAD {p['mad'] / 1e3:.2f} ms, "
+                             f"FWHM {p['fwhm_log10']:.3f} dec, {100 * p['fraction']:.0f}%)" for p in peaks)
+            rows.append([_e(ds), _e(METHOD_LABELS.get(m, m)), _num(res.get("median_lifetime_us", np.nan) / 1e3
+                                                                  if res.get("median_lifetime_us") is not None
+                                                                  else None, 2),
+                         _num(res.get("median_rel_error"), 3), _e(res.get("n_valid", res.get("n", ""))), _e(ptxt)])
+    info = "".join(f"<li>{_e(ds)}: {_e(d)}</li>" for ds, d in datasets.items())
+    return (f"<ul class='small'>{info}</ul>"
+            + _table(["dataset", "method", "median lifetime (ms)", "median rel. error", "n valid",
+                      "histogram peaks (log10 lifetime)"], rows, left_cols=2))
+
+
+def _cdm_section(cdm: dict) -> str:
+    parts = []
+    for scene, per_truth in cdm.items():
+        for truth, per_method in per_truth.items():
+            sections = [s for s in next(iter(per_method.values())) if s != "all"]
+            header = ["method"] + [f"{s}: median [q1, q3] (n)" for s in sections] + ["all: median"]
+            rows = []
+            for m, res in per_method.items():
+                cells = [f"{_num(res[s]['median'], 1)} [{_num(res[s]['q1'], 1)}, {_num(res[s]['q3'], 1)}] "
+                         f"({res[s]['n']})" for s in sections]
+                rows.append([_e(METHOD_LABELS.get(m, m))] + cells + [_num(res["all"]["median"], 1)])
+            parts.append(f"<h3>{_e(scene)} vs {_e(truth)}</h3>" + _table(header, rows))
+    return "".join(parts)
+
+
+def _real_section(real: dict, frames: dict) -> str:
+    parts = []
+    for rec, per_method in real.items():
+        t = frames.get(rec, {}).get("frame_t_us", [])
+        refs = list(next(iter(per_method.values()))["cdm_per_frame"])
+        for ref in refs:
+            header = ["method"] + [f"t={float(x) / 1e3:.1f} ms" for x in t] + ["median"]
+            rows = [[_e(METHOD_LABELS.get(m, m))] + [_num(v, 1) for v in res["cdm_per_frame"][ref]]
+                    + [_num(res["median"][ref], 1)] for m, res in per_method.items()]
+            parts.append(f"<h3>{_e(rec)} vs {_e(ref)}</h3>" + _table(header, rows))
+    return "".join(parts)
+
+
+def _dict_block(d) -> str:
+    import json
+
+    from ._files import to_jsonable
+
+    return f"<pre>{_e(json.dumps(to_jsonable(d), indent=1))}</pre>"
+
+
+def write_report(path, results: dict, *, figures: dict[str, list], notes: list[str]) -> Path:
+    """Write the HTML report.
+
+    Parameters
+    ----------
+    path : path
+        Output ``report.html``.
+    results : dict
+        As written to ``results.json`` (keys ``verdicts``, ``fmeasure``, ``lifetime``,
+        ``cdm``, ``real``, ``params``, ``run``).
+    figures : dict
+        Experiment -> list of PNG paths (inlined).
+    notes : list of str
+        Caveats and definitions shown at the end.
+    """
+    run = results.get("run", {})
+    h = [f"<!doctype html><html><head><meta charset='utf-8'><title>evedge report</title>"
+         f"<style>{_CSS}</style></head><body>",
+         "<h1>evedge: Edge Detection for Event Cameras using Intra-pixel-area Events "
+         "(Lee, Kim &amp; Kim, BMVC 2019) &mdash; reproduction report</h1>",
+         f"<p class='small'>Generated {_e(run.get('date_utc', ''))} by <code>{_e(run.get('command', ''))}</code>"
+         f" in {_num(run.get('wall_time_s'), 1)} s; mode: {'quick' if run.get('quick') else 'full'}. "
+         f"Versions: {_e(', '.join(f'{k} {v}' for k, v in run.get('versions', {}).items()))}.</p>",
+         "<h2>Do the paper's claims hold?</h2>", _verdict_section(results.get("verdicts", []))]
+    if results.get("errors"):
+        h.insert(-2, "<div class='fails'><b>Experiments that failed in this run:</b><ul>"
+                 + "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in results["errors"].items()) + "</ul></div>")
+    if results.get("fmeasure"):
+        h += ["<h2>1. RANSAC inlier decision and lifetime error (paper fig. 7)</h2>",
+              "<p class='small'>F-measure of RANSAC's final inliers against the true inliers among the points "
+              "it is given; mean relative lifetime error of successful fits; x-axis: timestamp noise std in "
+              "units of the true lifetime.</p>"]
+        h += [_img(p) for p in figures.get("ransac", [])]
+        h.append(_fmeasure_section(results["fmeasure"]))
+    if results.get("lifetime"):
+        h += ["<h2>2. Lifetimes on stripes (paper figs. 4-5)</h2>"]
+        h += [_img(p) for p in figures.get("lifetime", [])]
+        h.append(_lifetime_section(results["lifetime"], results.get("lifetime_datasets", {})))
+    if results.get("cdm"):
+        h += ["<h2>3. Similarity over time, slow then fast (paper fig. 9)</h2>"]
+        h += [_img(p) for p in figures.get("similarity", [])]
+        h.append(_cdm_section(results["cdm"]))
+    if figures.get("qualitative"):
+        h += ["<h2>4. Qualitative panel (paper figs. 1, 8)</h2>"]
+        h += [_img(p) for p in figures["qualitative"]]
+    if results.get("real"):
+        h += ["<h2>5. Real frames (slider_depth): CDM against Canny</h2>"]
+        h += [_img(p) for p in figures.get("real", [])]
+        h.append(_real_section(results["real"], results.get("real_frames", {})))
+    h += ["<h2>Definitions, caveats and parameters</h2>",
+          "<ul>" + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>",
+          "<h3>Parameters</h3>", _dict_block(results.get("params", {})),
+          "<h3>Timing (s)</h3>", _dict_block(run.get("timing_s", {})),
+          "</body></html>"]
+    return write_text_atomic(path, "\n".join(h))
