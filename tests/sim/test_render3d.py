@@ -7,6 +7,7 @@ import pytest
 
 from evedge.sim.render3d import (
     Box3D,
+    _cast_rays,
     CameraTrajectory,
     MeshRenderer,
     rotation_from_rpy,
@@ -279,10 +280,19 @@ def test_flow_matches_finite_difference_of_projections(make):
 
 
 # -- edges ----------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("centre, count", [(119.9, 41**2 - 39**2), (119.5, 42**2 - 38**2)])
-def test_edges_of_fronto_parallel_face_are_its_outline(make, centre, count):
+@pytest.mark.parametrize(
+    "method, centre, count",
+    [
+        ("exact", 119.9, 41**2 - 39**2),
+        ("exact", 119.55, 41**2 - 39**2),  # outline 0.05 px from a pixel border
+        ("exact", 119.37, 41**2 - 39**2),
+        ("raster", 119.9, 41**2 - 39**2),
+        ("raster", 119.5, 42**2 - 38**2),  # outline on pixel borders: both sides are edges
+    ],
+)
+def test_edges_of_fronto_parallel_face_are_its_outline(make, method, centre, count):
     r = make([slab(5.0)], cx=centre, cy=centre - 30.0)
-    edges = r.edges(0.0)
+    edges = r.edges(0.0, method=method)
     assert edges.dtype == bool and edges.shape == (180, 240)
     # the face projects to cx + [-20, 20], cy + [-20, 20]; a closed pixel square
     # [j-.5, j+.5] x [i-.5, i+.5] crosses the outline iff it meets the closed rectangle and is not
@@ -325,6 +335,51 @@ def test_edges_lie_on_projected_box_edges(make):
     assert len(np.unique(ids)) == 4  # background and three faces seen
 
 
+def test_exact_edges_match_brute_force_and_raster(make):
+    # two boxes, one partly hiding the other, seen from an oblique pose
+    tr = CameraTrajectory((0.6, -0.7, 0.0), (0.0, 0.0, 0.0), (0.1, -0.12, -0.1), (0.0, 0.0, 0.0))
+    boxes = [Box3D((0.0, 0.0, 5.0), (1.0, 1.2, 1.4), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
+             Box3D((0.8, 0.3, 7.0), (1.0, 1.2, 1.4), (0.6, 0.5, 0.4, 0.3, 0.2, 0.1))]
+    r = make(boxes, trajectory=tr, width=120, height=90, fx=100.0, fy=100.0, cx=59.8, cy=44.8)
+    exact, raster = r.edges(0.0), r.edges(0.0, method="raster")
+    # brute force: a pixel is an edge iff a 21 x 21 grid over its closed square sees > 1 face
+    grown = exact | raster
+    grown[1:] |= grown[:-1].copy()
+    grown[:-1] |= grown[1:].copy()
+    grown[:, 1:] |= grown[:, :-1].copy()
+    grown[:, :-1] |= grown[:, 1:].copy()
+    rows, cols = np.nonzero(grown)
+    g = np.linspace(-0.5, 0.5, 21)
+    gu, gv = (a.ravel() for a in np.meshgrid(g, g))
+    u = (cols[:, None] + gu).ravel()
+    v = (rows[:, None] + gv).ravel()
+    rays = np.stack([(u - r.cx) / r.fx, (v - r.cy) / r.fy, np.ones(u.size)], axis=1) @ tr.rotation(0.0).T
+    ids = _cast_rays(tr.position(0.0), rays, r._lo, r._hi).reshape(len(rows), -1)
+    brute = np.zeros_like(exact)
+    brute[rows, cols] = ids.min(axis=1) != ids.max(axis=1)
+    assert brute.sum() > 150
+    np.testing.assert_array_equal(exact, brute)
+    # the raster approximation contains the exact map and stays within one pixel of it
+    assert np.all(raster[exact])
+    assert not np.any(raster & ~grown)
+
+
+def test_rasterised_faces_match_analytic_ray_casting(make):
+    # the GL image (pose conversion, intrinsics, pixel centres) against exact slab ray casting
+    tr = CameraTrajectory((0.3, -0.4, 0.2), (0.1, 0.0, 0.3), (0.08, -0.1, 0.15), (0.2, 0.1, -0.3))
+    boxes = [Box3D((0.0, 0.0, 5.0), (1.0, 1.2, 1.4), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
+             Box3D((1.0, 0.3, 7.0), (1.5, 0.8, 1.0), (0.6, 0.5, 0.4, 0.3, 0.2, 0.1))]
+    r = make(boxes, trajectory=tr)
+    for t in (0.0, 0.8):
+        ids = r._center_ids(t)
+        v, u = np.mgrid[0:180, 0:240]
+        rays = np.stack([(u.ravel() - r.cx) / r.fx, (v.ravel() - r.cy) / r.fy, np.ones(u.size)], axis=1)
+        exact = _cast_rays(tr.position(t), rays @ tr.rotation(t).T, r._lo, r._hi).reshape(180, 240)
+        assert len(np.unique(exact)) >= 4
+        # pixel centres within rounding of an outline may go either way; allow a handful
+        assert np.count_nonzero(exact != ids) <= 5
+
+
 def test_contrast_only_edges_skip_invisible_creases(make):
     # camera to the right of the box sees its -z and +x faces; equal intensities hide the crease
     tr = CameraTrajectory((1.5, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
@@ -334,13 +389,17 @@ def test_contrast_only_edges_skip_invisible_creases(make):
     assert set(np.unique(ids)) == {0, 2, 5}  # background, +x face, -z face
     crease = (ids[:, 1:] == 5) & (ids[:, :-1] == 2) | (ids[:, 1:] == 2) & (ids[:, :-1] == 5)
     assert crease.sum() > 10
-    all_edges, visible = r.edges(0.0), r.edges(0.0, contrast_only=True)
-    assert np.all(all_edges[:, 1:][crease] | all_edges[:, :-1][crease])
-    # everything has intensity 0.7: no contrast anywhere
-    assert not visible.any()
     r2 = make([Box3D(same.center_m, same.size_m, (0.3, 0.2, 0.3, 0.3, 0.7, 0.3))], trajectory=tr)
-    visible = r2.edges(0.0, contrast_only=True)
-    np.testing.assert_array_equal(visible, r2.edges(0.0))
+    for method in ("exact", "raster"):
+        all_edges = r.edges(0.0, method=method)
+        visible = r.edges(0.0, contrast_only=True, method=method)
+        assert np.all(all_edges[:, 1:][crease] | all_edges[:, :-1][crease])
+        # everything seen has intensity 0.7: no contrast anywhere
+        assert not visible.any()
+        visible = r2.edges(0.0, contrast_only=True, method=method)
+        np.testing.assert_array_equal(visible, r2.edges(0.0, method=method))
+    with pytest.raises(ValueError, match="method"):
+        r.edges(0.0, method="sobel")
 
 
 def test_many_boxes_use_wide_face_identifiers(make):
