@@ -1,0 +1,173 @@
+"""``evedge detect``: lifetimes, flow and edge frames of an event file."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import click
+import numpy as np
+
+from evedge.events import SensorSize
+
+_CHUNK = 100_000
+
+
+def _sensor(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        return SensorSize.parse(value)
+    except (ValueError, TypeError) as err:
+        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
+
+
+def _times(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        times = np.array([int(v) for v in value.split(",") if v.strip()], dtype=np.int64)
+    except ValueError:
+        raise click.BadParameter(f"expected comma-separated microseconds, got {value!r}", ctx=ctx, param=param) from None
+    if times.size == 0:
+        raise click.BadParameter("no instant given", ctx=ctx, param=param)
+    return times
+
+
+def _frame_times(events, fps, times):
+    if times is not None:
+        return times
+    if events.size == 0:
+        return np.empty(0, np.int64)
+    step = 1e6 / fps
+    t0, t1 = int(events["t"][0]), int(events["t"][-1])
+    return np.rint(np.arange(t0 + step, t1 + step / 2, step)).astype(np.int64)
+
+
+def _atomic(path: Path, write) -> None:
+    """Write through a temp file in the target's directory, then rename over it."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _lifetimes_intra(events, sensor, use_buffer, seed, quiet):
+    from tqdm import tqdm
+
+    from .buffer import filter_events
+    from .intra import IntraParams, IntraPixelLifetime
+    from .result import empty_lifetimes
+
+    kept = filter_events(events, sensor) if use_buffer else np.ones(events.size, bool)
+    sub = events[kept]
+    est = IntraPixelLifetime(sensor, IntraParams(seed=seed))
+    parts = []
+    with tqdm(total=sub.size, unit="ev", desc="lifetimes", disable=quiet) as bar:
+        for start in range(0, sub.size, _CHUNK):
+            parts.append(est.process(sub[start : start + _CHUNK]))
+            bar.update(min(_CHUNK, sub.size - start))
+    out = empty_lifetimes(events.size)
+    if parts:
+        out[kept] = np.concatenate(parts)
+    return out, kept
+
+
+def _write_h5(path: Path, lifetimes, kept, times, frames, meta) -> None:
+    import h5py
+
+    def write(tmp):
+        with h5py.File(tmp, "w") as f:
+            for key, value in meta.items():
+                f.attrs[key] = value
+            if lifetimes is not None:
+                g = f.create_group("lifetimes")
+                for name in lifetimes.dtype.names:
+                    g.create_dataset(name, data=lifetimes[name], compression="gzip")
+                g.create_dataset("kept", data=kept, compression="gzip")
+            e = f.create_group("edges")
+            e.create_dataset("t_us", data=times)
+            e.create_dataset("images", data=frames, compression="gzip")
+
+    _atomic(path, write)
+
+
+def _write_pngs(folder: Path, times, frames, quiet) -> None:
+    from PIL import Image
+    from tqdm import tqdm
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, (t, img) in enumerate(tqdm(list(zip(times, frames)), desc="PNG", unit="frame", disable=quiet)):
+        target = folder / f"edges_{i:06d}_{int(t)}us.png"
+        _atomic(target, lambda tmp, img=img: Image.fromarray((img * 255).astype(np.uint8)).save(tmp, format="PNG"))
+
+
+@click.command()
+@click.argument("events_file", metavar="EVENTS", type=click.Path(exists=True, path_type=str))
+@click.option("-o", "--out", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Output folder: detection.h5 and edges/*.png.")
+@click.option("--method", type=click.Choice(["intra", "mueggler", "time", "count"]), default="intra",
+              show_default=True, help="Lifetime method, or accumulation over a time window / an event count.")
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=30.0, show_default=True,
+              help="Edge frames per second over the recording (ignored with --times).")
+@click.option("--times", callback=_times, metavar="T1,T2,...", help="Edge-frame instants in microseconds.")
+@click.option("--window-ms", type=click.FloatRange(min=0, min_open=True), default=30.0, show_default=True,
+              help="Time window of --method time.")
+@click.option("--count", "n_events", type=click.IntRange(min=1), default=2000, show_default=True,
+              help="Events per frame of --method count.")
+@click.option("--sensor", callback=_sensor, metavar="WxH", help="Sensor size when the file does not say.")
+@click.option("--buffer/--no-buffer", "use_buffer", default=None,
+              help="Event-buffer noise filter (default: on for intra, off for mueggler).")
+@click.option("--clear-behind", is_flag=True, help="Clear the pixel behind each event (Mueggler's display).")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="RANSAC seed (intra).")
+@click.option("--quiet", is_flag=True, help="No progress bars.")
+def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, use_buffer, clear_behind, seed, quiet):
+    """Detect edges in an event file EVENTS (any format evedge.io reads).
+
+    Writes OUT/detection.h5 (per-event lifetime_us, vx_px_s, vy_px_s, valid and
+    kept for lifetime methods; edge frames with their times) and one PNG per
+    edge frame in OUT/edges/.
+    """
+    from evedge.io import read_events
+
+    try:
+        rec = read_events(events_file, sensor_size=sensor)
+    except (ValueError, TypeError, OSError) as err:
+        raise click.ClickException(str(err)) from None
+    events, size = rec.events, rec.sensor_size
+    frame_t = _frame_times(events, fps, times)
+    lifetimes = kept = None
+    if method in ("intra", "mueggler"):
+        from .edges import edge_frames
+
+        if method == "intra":
+            lifetimes, kept = _lifetimes_intra(events, size, True if use_buffer is None else use_buffer, seed, quiet)
+        else:
+            from .pipeline import detect as run
+
+            res = run(events, size, method="mueggler", use_buffer=use_buffer)
+            lifetimes, kept = res.lifetimes, res.kept
+        frames = edge_frames(events[kept], lifetimes[kept], size, frame_t, clear_behind=clear_behind)
+    elif method == "time":
+        from .accumulate import accumulate_time
+
+        frames = accumulate_time(events, size, frame_t, int(round(window_ms * 1000)))
+    else:
+        from .accumulate import accumulate_count
+
+        frames = accumulate_count(events, size, frame_t, n_events)
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {"source": str(events_file), "method": method, "sensor_width": size.width, "sensor_height": size.height}
+    _write_h5(out / "detection.h5", lifetimes, kept, frame_t, frames, meta)
+    _write_pngs(out / "edges", frame_t, frames, quiet)
+    n_valid = int(lifetimes["valid"].sum()) if lifetimes is not None else None
+    msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"
+    if n_valid is not None:
+        msg += f"; {int(kept.sum())} passed to the estimator, {n_valid} with a lifetime"
+    click.echo(msg)

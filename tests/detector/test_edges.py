@@ -1,0 +1,133 @@
+"""Edge images: kernel against a slow reference, analytic cases, streaming == one-shot, errors."""
+
+import math
+
+import numpy as np
+import pytest
+
+from evedge.detector.edges import EdgeImage, edge_frames
+from evedge.detector.result import LIFETIME_DTYPE, empty_lifetimes
+from evedge.events import SensorSize, make_events
+
+S = SensorSize(10, 8)
+
+
+def random_lifetimes(n, rng):
+    rng = np.random.default_rng(rng)
+    out = empty_lifetimes(n)
+    valid = rng.random(n) < 0.8
+    speed = rng.uniform(100, 5000, n)
+    ang = rng.uniform(-np.pi, np.pi, n)
+    out["valid"] = valid
+    out["lifetime_us"][valid] = (1e6 / speed)[valid]
+    out["vx_px_s"][valid] = (speed * np.cos(ang))[valid]
+    out["vy_px_s"][valid] = (speed * np.sin(ang))[valid]
+    return out
+
+
+def reference_frame(events, lifetimes, size, T, clear_behind, invalid):
+    """Replay every event with t <= T in pure Python."""
+    last = {}
+    expiry = {}
+    dirs = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)]
+    for e, r in zip(events, lifetimes):
+        t = int(e["t"])
+        if t > T:
+            break
+        pix = (int(e["x"]), int(e["y"]))
+        if not r["valid"]:
+            if invalid == "clear":
+                last[pix], expiry[pix] = t, float(t)
+            continue
+        last[pix], expiry[pix] = t, t + float(r["lifetime_us"])
+        if clear_behind:
+            d = int(math.floor(math.atan2(-r["vy_px_s"], -r["vx_px_s"]) / (math.pi / 4) + 0.5)) % 8
+            q = (pix[0] + dirs[d][0], pix[1] + dirs[d][1])
+            if 0 <= q[0] < size.width and 0 <= q[1] < size.height and expiry.get(q, -math.inf) > t:
+                expiry[q] = float(t)
+    img = np.zeros(size.shape, bool)
+    for (x, y), t in last.items():
+        img[y, x] = t <= T < expiry[(x, y)]
+    return img
+
+
+@pytest.mark.parametrize("clear_behind", [False, True])
+@pytest.mark.parametrize("invalid", ["ignore", "clear"])
+def test_matches_reference(random_events, clear_behind, invalid):
+    ev = random_events(500, S.width, S.height, duration_us=20_000, rng=4)
+    lt = random_lifetimes(ev.size, 5)
+    times = np.array([15_000, 0, 5_000, 19_999, 7_777, int(ev["t"][100]), 30_000])
+    frames = edge_frames(ev, lt, S, times, clear_behind=clear_behind, invalid=invalid)
+    assert frames.shape == (times.size, *S.shape)
+    for f, T in zip(frames, times):
+        np.testing.assert_array_equal(f, reference_frame(ev, lt, S, T, clear_behind, invalid))
+    assert frames.any() and not frames.all()
+
+
+def test_streaming_equals_one_shot(random_events):
+    ev = random_events(800, S.width, S.height, duration_us=40_000, rng=1)
+    lt = random_lifetimes(ev.size, 2)
+    times = np.arange(1_000, 40_000, 2_500)
+    want = edge_frames(ev, lt, S, times, clear_behind=True)
+    img = EdgeImage(S, clear_behind=True)
+    start = 0
+    for i, T in enumerate(times):
+        end = np.searchsorted(ev["t"], T, side="right")
+        # feed in two uneven pieces
+        mid = (start + end) // 3 + start // 2
+        mid = min(max(mid, start), end)
+        img.process(ev[start:mid], lt[start:mid])
+        img.process(ev[mid:end], lt[mid:end])
+        start = end
+        np.testing.assert_array_equal(img.image_at(T), want[i])
+
+
+def test_pixel_alive_for_its_lifetime_only():
+    ev = make_events([2, 5], [3, 3], [1000, 1500], [True, False])
+    lt = empty_lifetimes(2)
+    lt["valid"] = [True, False]
+    lt["lifetime_us"][0] = 400.0
+    lt["vx_px_s"][0], lt["vy_px_s"][0] = 2500.0, 0.0
+    f = edge_frames(ev, lt, S, [999, 1000, 1399, 1400])
+    assert [bool(x[3, 2]) for x in f] == [False, True, True, False]
+    assert not f[:, 3, 5].any()  # the invalid event makes no edge
+
+
+def test_clear_behind_and_invalid_clear():
+    # pixel (4, 3) alive, then an event at (5, 3) moving right (+x) clears it
+    ev = make_events([4, 5], [3, 3], [0, 100], [True, True])
+    lt = empty_lifetimes(2)
+    lt["valid"] = True
+    lt["lifetime_us"] = 1000.0
+    lt["vx_px_s"], lt["vy_px_s"] = 1000.0, 0.0
+    keep = edge_frames(ev, lt, S, [150])[0]
+    cleared = edge_frames(ev, lt, S, [150], clear_behind=True)[0]
+    assert keep[3, 4] and keep[3, 5]
+    assert not cleared[3, 4] and cleared[3, 5]
+    # an invalid event on a live pixel: ignored, or ends its life
+    ev2 = make_events([4, 4], [3, 3], [0, 100], [True, True])
+    lt2 = lt.copy()
+    lt2["valid"][1] = False
+    assert edge_frames(ev2, lt2, S, [150])[0][3, 4]
+    assert not edge_frames(ev2, lt2, S, [150], invalid="clear")[0][3, 4]
+
+
+def test_errors():
+    ev = make_events([1, 2], [1, 1], [0, 5], [True, True])
+    lt = empty_lifetimes(2)
+    with pytest.raises(ValueError, match="lifetimes"):
+        edge_frames(ev, empty_lifetimes(3), S, [0])
+    with pytest.raises(TypeError, match="lifetimes"):
+        edge_frames(ev, np.zeros(2), S, [0])
+    with pytest.raises(ValueError, match="times_us"):
+        edge_frames(ev, lt, S, [[0, 1]])
+    with pytest.raises(ValueError, match="invalid"):
+        EdgeImage(S, invalid="dead")
+    img = EdgeImage(S)
+    img.process(ev, lt)
+    with pytest.raises(ValueError, match="before the newest"):
+        img.image_at(4)
+    assert img.image_at(5).dtype == bool
+    with pytest.raises(ValueError, match="previous chunk"):
+        img.process(ev[:1], lt[:1])
+    assert lt.dtype == LIFETIME_DTYPE

@@ -1,0 +1,69 @@
+"""Pipeline: buffer + estimator aligned with the input; streaming detector == one-shot."""
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from evedge.detector import BufferParams, Detector, IntraParams, detect, edge_frames, estimate_lifetimes, filter_events
+from evedge.events import SensorSize
+
+
+def _noisy_edges(edge_events, random_events):
+    ev, _ = edge_events(24, 20, 800, 0.3, n_edges=3, spacing_px=8, jitter_frac=0.05, rng=3)
+    noise = random_events(300, 24, 20, duration_us=int(ev["t"][-1]), rng=4)
+    allev = np.concatenate([ev, noise])
+    return allev[np.argsort(allev["t"], kind="stable")]
+
+
+def test_detect_aligns_with_input(edge_events, random_events):
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
+    res = detect(ev, size)
+    kept = filter_events(ev, size)
+    np.testing.assert_array_equal(res.kept, kept)
+    assert 0 < (~kept).sum() < 0.2 * kept.size
+    assert not res.lifetimes["valid"][~kept].any()
+    assert np.isnan(res.lifetimes["lifetime_us"][~kept]).all()
+    assert res.lifetimes[kept].tobytes() == estimate_lifetimes(ev[kept], size).tobytes()
+    raw = detect(ev, size, use_buffer=False)
+    assert raw.kept.all()
+    assert raw.lifetimes.tobytes() == estimate_lifetimes(ev, size).tobytes()
+
+
+def test_streaming_detector_equals_one_shot(edge_events, random_events):
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
+    bp = BufferParams(tau_min_us=3_000)
+    res = detect(ev, size, buffer_params=bp)
+    det = Detector(size, buffer_params=bp)
+    outs = [det.process(c) for c in np.array_split(ev, 11)] + [det.flush()]
+    got_ev = np.concatenate([o[0] for o in outs])
+    got_lt = np.concatenate([o[1] for o in outs])
+    np.testing.assert_array_equal(got_ev, ev[res.kept])
+    assert got_lt.tobytes() == res.lifetimes[res.kept].tobytes()
+    T = int(ev["t"][-1]) + 1
+    want = edge_frames(ev[res.kept], res.lifetimes[res.kept], size, [T])[0]
+    np.testing.assert_array_equal(det.image_at(T), want)
+
+
+def test_method_and_param_errors(edge_events):
+    size = SensorSize(8, 8)
+    ev, _ = edge_events(8, 8, 500, 0.2)
+    with pytest.raises(ValueError, match="method"):
+        detect(ev, size, method="canny")
+    with pytest.raises(TypeError, match="IntraParams"):
+        detect(ev, size, params=BufferParams())
+    with pytest.raises(TypeError, match="use_buffer"):
+        detect(ev, size, use_buffer="yes")
+    res = detect(ev, size, params=IntraParams(window_size=3, min_points=3, min_inliers=3))
+    assert res.lifetimes["valid"].any()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("evedge.detector.mueggler") is None, reason="baseline absent")
+def test_mueggler_method_runs(edge_events):
+    size = SensorSize(16, 16)
+    ev, tau = edge_events(16, 16, 500, 0.4, n_edges=2, spacing_px=8)
+    res = detect(ev, size, method="mueggler")
+    assert res.kept.all()  # no buffer by default for the baseline
+    assert res.lifetimes.shape == ev.shape and res.lifetimes["valid"].any()
