@@ -225,10 +225,11 @@ def test_flow_of_translation_over_fronto_parallel_plane(make, velocity):
     vx, vy, vz = velocity
     np.testing.assert_allclose(flow[0], -FX * vx / z + u * vz / z + 0 * v, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(flow[1], -FX * vy / z + v * vz / z + 0 * u, rtol=1e-10, atol=1e-10)
-    # the speed bound of a constant field is the field times the documented safety factor
+    # the speed bound holds and is not loose by more than the field-of-view factor r^2
     speed = np.hypot(*flow).max()
-    if vz == 0:
-        assert r.max_speed_px_s(0.0, 0.01) == pytest.approx(1.5 * speed, rel=1e-9)
+    bound = r.max_speed_px_s(0.0, 0.01)
+    r2 = 1 + (120.3 / FX) ** 2 + (90.3 / FX) ** 2
+    assert speed <= bound <= r2 * FX * np.linalg.norm(velocity) / (z - 0.01 * np.linalg.norm(velocity))
 
 
 def test_flow_of_rotation_about_optical_axis(make):
@@ -241,6 +242,9 @@ def test_flow_of_rotation_about_optical_axis(make):
     # independent of depth, background included
     np.testing.assert_allclose(flow[0], (FX / 150.0) * wz * v, atol=1e-10)
     np.testing.assert_allclose(flow[1], -(150.0 / FX) * wz * u, atol=1e-10)
+    # the rotational bound is tight for a roll: the field is largest at an image corner
+    corner = math.hypot(FX / 150.0 * wz * 90.3, 150.0 / FX * wz * 120.3)
+    assert np.hypot(*flow).max() <= r.max_speed_px_s(0.0, 1.0) == pytest.approx(corner, rel=1e-12)
 
 
 def test_flow_matches_finite_difference_of_projections(make):
@@ -273,10 +277,25 @@ def test_flow_matches_finite_difference_of_projections(make):
     fd = (proj_dir(t + h) - proj_dir(t - h)) / (2 * h) * [r.fx, r.fy]
     np.testing.assert_allclose(flow[0, vb, ub], fd[:, 0], rtol=1e-5, atol=1e-4)
     np.testing.assert_allclose(flow[1, vb, ub], fd[:, 1], rtol=1e-5, atol=1e-4)
-    # the speed bound covers the sampled field
-    assert r.max_speed_px_s(0.0, 0.6) >= np.hypot(*r.flow(0.45)).max()
+    # the speed bound covers the field at every time of the interval
+    bound = r.max_speed_px_s(0.0, 0.6)
+    top = max(np.hypot(*r.flow(t)).max() for t in np.linspace(0.0, 0.6, 7))
+    assert top <= bound <= 3 * top
     with pytest.raises(ValueError, match="t1_s"):
         r.max_speed_px_s(1.0, 0.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_speed_bound_holds_for_random_motion(make, seed):
+    rng = np.random.default_rng(seed)
+    tr = CameraTrajectory(rng.uniform(-0.3, 0.3, 3), rng.uniform(-1, 1, 3), rng.uniform(-0.2, 0.2, 3),
+                          rng.uniform(-0.5, 0.5, 3))
+    boxes = [Box3D((rng.uniform(-1.5, 1.5), rng.uniform(-1, 1), rng.uniform(3, 6)),
+                   tuple(rng.uniform(0.3, 1.0, 3)), tuple(rng.uniform(0, 1, 6))) for _ in range(3)]
+    r = make(boxes, trajectory=tr, width=80, height=60, fx=70.0, fy=75.0, cx=40.2, cy=29.6)
+    bound = r.max_speed_px_s(0.0, 0.5)
+    top = max(np.hypot(*r.flow(t)).max() for t in np.linspace(0.0, 0.5, 6))
+    assert top <= bound <= 4 * top
 
 
 # -- edges ----------------------------------------------------------------------------------------------
