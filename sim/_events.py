@@ -72,9 +72,14 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
 
     ``e_hi = exp(lref + cpos)`` and ``e_lo = exp(lref - cneg)`` let most pixels
     be skipped without a logarithm. With ``fill`` False nothing is written or
-    mutated and only the count is returned (first pass of two-pass sizing).
+    mutated (first pass of two-pass sizing).
+
+    Returns ``(n_events, n_moved)``: the events emitted and the pixels whose
+    reference level moved (non-zero ``n_moved`` with ``n_events == 0`` when all
+    crossings fell in refractory periods: the fill pass must still run).
     """
     n = 0
+    n_moved = 0
     span = t1 - t0
     for i in range(i0.shape[0]):
         a = i1[i] + eps
@@ -117,13 +122,15 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
                     n += 1
                     k += 1
                     last = tc
+        if moved:
+            n_moved += 1
         if fill and moved:
             lref[i] = lr
             e_hi[i] = math.exp(lr + cp)
             e_lo[i] = math.exp(lr - cn)
             last_t[i] = last
             seq[i] = k
-    return n
+    return n, n_moved
 
 
 @njit(cache=True)

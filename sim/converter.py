@@ -210,13 +210,14 @@ class EventConverter:
         empty_i = np.empty(0, dtype=np.int64)
         empty_f = np.empty(0)
         empty_b = np.empty(0, dtype=np.bool_)
-        n = _convert(*args, False, empty_i, empty_f, empty_f, empty_b)
-        if n:
+        n, moved = _convert(*args, False, empty_i, empty_f, empty_f, empty_b)
+        if moved:
             pix = np.empty(n, dtype=np.int64)
             t_true = np.empty(n)
             t_emit = np.empty(n)
             pol = np.empty(n, dtype=np.bool_)
             _convert(*args, True, pix, t_true, t_emit, pol)
+        if n:
             truth = self._truth(pix, t_true, t0, t1, i0, i1)
             self._pending.append(dict(pix=pix, t=t_emit, p=pol, noise=np.zeros(n, dtype=np.bool_), truth=truth))
         else:

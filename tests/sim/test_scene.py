@@ -1,0 +1,114 @@
+"""Scene files: the shipped scenes load; errors name the file, the key and the problem."""
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from evedge.sim import SceneError, load_scene, parse_scene, simulate
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+
+
+@pytest.mark.parametrize("name", ["stripes", "shapes_translation", "shapes_rotation", "boxes_3d"])
+def test_shipped_scenes_load(name):
+    scene = load_scene(SCENES / f"{name}.toml")
+    assert scene.name == name
+    assert scene.duration_s > 0
+
+
+def test_shipped_scene_facts():
+    stripes = load_scene(SCENES / "stripes.toml")
+    assert (stripes.sensor.width, stripes.sensor.height) == (128, 128)
+    speeds = sorted(abs(layer.velocity_px_s[0]) for layer in stripes.objects)
+    assert len(speeds) == 2 and speeds[0] < speeds[1]
+    tr = load_scene(SCENES / "shapes_translation.toml")
+    assert (tr.sensor.width, tr.sensor.height) == (240, 180)
+    assert [s.name for s in tr.sections] == ["slow", "fast"]
+    assert tr.motion.max_speed_px_s(*[tr.sections[1].start_s, tr.sections[1].end_s], 240, 180) > \
+        2 * tr.motion.max_speed_px_s(tr.sections[0].start_s, tr.sections[0].end_s, 240, 180)
+
+
+def test_sections_reach_metadata():
+    scene = load_scene(SCENES / "shapes_translation.toml")
+    rec = simulate(scene, duration_s=0.002, progress=False, frame_rate_hz=0)
+    assert rec.metadata["sections"][1] == {"name": "fast", "start_us": 1400000, "end_us": 2000000}
+
+
+def _base():
+    return {
+        "scene": {"kind": "shapes", "duration_s": 0.1},
+        "sensor": {"preset": "davis240"},
+        "shapes": [{"kind": "circle", "center_px": [50, 50], "radius_px": 10}],
+    }
+
+
+def _mutate(path, value):
+    d = _base()
+    node = d
+    for k in path[:-1]:
+        node = node[k]
+    if value is KeyError:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return d
+
+
+CASES = [
+    (("scene", "duration_s"), KeyError, "scene.duration_s", "missing"),
+    (("scene", "duration_s"), -1.0, "scene.duration_s", "must be >"),
+    (("scene", "duration_s"), "long", "scene.duration_s", "expected a number"),
+    (("scene", "kind"), "blob", "scene.kind", "must be one of"),
+    (("scene", "durration_s"), 1.0, "scene.durration_s", "unknown key"),
+    (("sensor", "preset"), "dvs999", "sensor.preset", "unknown preset"),
+    (("sensor",), {"width": 100}, "sensor.height", "give a preset or both width and height"),
+    (("events",), {"contrast_pos": 0}, "events.contrast_pos", "must be >"),
+    (("events",), {"lambda": 2.0}, "events.lambda", "must be <= 1"),
+    (("shapes",), [{"kind": "circle", "center_px": [1, 2, 3], "radius_px": 2}], "shapes[0].center_px",
+     "expected an array of 2"),
+    (("shapes",), [{"kind": "circle", "center_px": [1, 2]}], "shapes[0].radius_px", "missing"),
+    (("shapes",), [{"kind": "star", "center_px": [1, 2], "radius_px": 3, "inner_ratio": 1.5}],
+     "shapes[0].inner_ratio", "must be < 1"),
+    (("shapes",), [{"kind": "circle", "center_px": [1, 2], "radius_px": 2, "intensity": 1.5}],
+     "shapes[0].intensity", "must be <= 1"),
+    (("motion",), {"frequency_hz": -1}, "motion.frequency_hz", "must be >="),
+]
+
+
+@pytest.mark.parametrize("path,value,key,problem", CASES)
+def test_errors_name_file_key_problem(path, value, key, problem):
+    with pytest.raises(SceneError) as info:
+        parse_scene(_mutate(path, value), source="scenes/bad.toml")
+    msg = str(info.value)
+    assert msg.startswith("scenes/bad.toml: ")
+    assert f"'{key}'" in msg
+    assert problem in msg
+
+
+def test_stripes_errors(tmp_path):
+    d = {
+        "scene": {"kind": "stripes", "duration_s": 0.1},
+        "sensor": {"preset": "dvs128"},
+        "stripes": [{"rows_fraction": [0.0, 0.6], "period_px": 10, "velocity_px_s": [1, 0]},
+                    {"rows_fraction": [0.5, 1.0], "period_px": 10, "velocity_px_s": [1, 0]}],
+    }
+    with pytest.raises(SceneError, match=r"x.toml: key 'stripes\[1\].rows_fraction': rows .* overlap"):
+        parse_scene(copy.deepcopy(d), "x.toml")
+    d["stripes"][1]["rows_fraction"] = [0.6, 1.0]
+    d["stripes"][1]["period_px"] = 0
+    with pytest.raises(SceneError, match=r"key 'stripes\[1\].period_px': must be > 0"):
+        parse_scene(d, "x.toml")
+
+
+def test_file_level_errors(tmp_path):
+    bad = tmp_path / "broken.toml"
+    bad.write_text("[scene\nkind = 1\n")
+    with pytest.raises(SceneError, match="broken.toml: not valid TOML"):
+        load_scene(bad)
+    with pytest.raises(SceneError, match="missing.toml: cannot read scene file"):
+        load_scene(tmp_path / "missing.toml")
+    nohead = tmp_path / "nohead.toml"
+    nohead.write_text('[sensor]\npreset = "dvs128"\n')
+    with pytest.raises(SceneError, match="nohead.toml: key 'scene': missing table"):
+        load_scene(nohead)

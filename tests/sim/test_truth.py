@@ -1,0 +1,100 @@
+"""Ground truth: lifetimes of moving stripes, the SAE slope, shapes' normals and flow."""
+
+import math
+
+import numpy as np
+import pytest
+
+from evedge.sim import parse_scene, simulate
+from evedge.sim.motion import PlanarMotion
+from evedge.sim.planar import Polygon, ShapesRenderer
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 30.0, -50.0])
+def test_stripe_lifetime_is_one_over_normal_speed(stripes_dict, angle_deg):
+    v = 120.0
+    d = stripes_dict(width=20, height=12, duration_s=0.12, velocity_px_s=[v, 0.0], angle_deg=angle_deg)
+    rec = simulate(parse_scene(d, "s.toml"), progress=False, frame_rate_hz=0)
+    truth = rec.truth[rec.truth["is_signal"]]
+    assert truth.shape[0] > 200
+    want = 1e6 / (v * math.cos(math.radians(angle_deg)))
+    np.testing.assert_allclose(truth["lifetime_us"], want, rtol=1e-12)
+    np.testing.assert_allclose(truth["vx_px_s"], v)
+    np.testing.assert_allclose(np.hypot(truth["nx"], truth["ny"]), 1.0)
+    # the gradient direction is the stripe normal, up to its sign
+    a = math.radians(angle_deg)
+    np.testing.assert_allclose(np.abs(truth["nx"] * math.cos(a) + truth["ny"] * math.sin(a)), 1.0)
+
+
+def test_stripe_polarity_matches_gradient_direction(stripes_dict):
+    # motion along +x: the brightness at a pixel rises (ON) when the brighter side (+n) comes from behind,
+    # i.e. when n points against the motion
+    d = stripes_dict(width=20, height=4, duration_s=0.1, velocity_px_s=[100.0, 0.0])
+    rec = simulate(parse_scene(d, "s.toml"), progress=False, frame_rate_hz=0)
+    on = rec.events["p"]
+    np.testing.assert_array_equal(rec.truth["nx"][on] < 0, True)
+    np.testing.assert_array_equal(rec.truth["nx"][~on] > 0, True)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 30.0])
+def test_sae_slope_matches_truth_lifetime(stripes_dict, angle_deg):
+    """One edge sweeps the sensor; the plane fitted to the last timestamp per pixel has slope 1/(v cos a)."""
+    v = 200.0
+    a = math.radians(angle_deg)
+    w = h = 20
+    span = w * math.cos(a) + h * abs(math.sin(a))
+    dur = (span + 4.0) / (v * math.cos(a))
+    # period 1000 px, the light->dark boundary u = 0 starts 2 px before the sensor's first corner
+    d = stripes_dict(width=w, height=h, duration_s=dur, velocity_px_s=[v, 0.0], angle_deg=angle_deg,
+                     period_px=1000.0, duty=0.5, phase_px=-2.0 - 500.0)
+    rec = simulate(parse_scene(d, "edge.toml"), progress=False, frame_rate_hz=0)
+    ev = rec.events
+    assert ev.shape[0] > w * h
+    sae = np.full((h, w), -1, np.int64)
+    sae[ev["y"], ev["x"]] = ev["t"]  # events are time-sorted: the last write is the latest
+    assert np.all(sae >= 0)
+    yy, xx = np.mgrid[0:h, 0:w]
+    coef, *_ = np.linalg.lstsq(np.column_stack([xx.ravel(), yy.ravel(), np.ones(xx.size)]),
+                               sae.ravel().astype(float), rcond=None)
+    slope_us_per_px = math.hypot(coef[0], coef[1])
+    want = 1e6 / (v * math.cos(a))
+    assert slope_us_per_px == pytest.approx(want, rel=0.01)
+    np.testing.assert_allclose(rec.truth["lifetime_us"][rec.truth["is_signal"]], want, rtol=1e-12)
+    # and the plane's direction is the edge normal
+    assert math.atan2(coef[1], coef[0]) == pytest.approx(a, abs=0.02)
+
+
+def test_shapes_truth_normals_and_flow_in_translation():
+    sq = np.array([[10.0, 8.0], [22.0, 8.0], [22.0, 20.0], [10.0, 20.0]])
+    m = PlanarMotion(velocity_px_s=(80.0, 0.0))
+    r = ShapesRenderer(40, 28, [Polygon(sq, 0.1)], m, background=0.9)
+    # pixel on the left edge and the right edge at t = 0.05 s (square moved by 4 px)
+    vx, vy, nx, ny = r.point_truth(np.array([14.0, 26.0, 20.0]), np.array([14.0, 14.0, 8.0]), np.full(3, 0.05))
+    np.testing.assert_allclose(vx, 80.0)
+    np.testing.assert_allclose(vy, 0.0)
+    # dark shape: the gradient points outward (left edge: -x, right edge: +x, top edge: -y)
+    np.testing.assert_allclose(np.stack([nx, ny], 1), [[-1, 0], [1, 0], [0, -1]], atol=1e-12)
+
+
+def test_shapes_simulation_truth_consistent_with_rotation():
+    d = {
+        "scene": {"kind": "shapes", "duration_s": 0.05, "seed": 1, "background": 0.8},
+        "sensor": {"width": 40, "height": 30},
+        "motion": {"angular_velocity_deg_s": 90.0},
+        "shapes": [{"kind": "hexagon", "center_px": [26.0, 15.0], "radius_px": 8.0, "intensity": 0.2},
+                   {"kind": "circle", "center_px": [10.0, 14.0], "radius_px": 5.0, "intensity": 0.3}],
+    }
+    rec = simulate(parse_scene(d, "rot.toml"), progress=False, frame_rate_hz=0)
+    ev, tr = rec.events, rec.truth
+    assert ev.shape[0] > 100 and tr["is_signal"].all()
+    w = math.radians(90.0)
+    cx, cy = 19.5, 14.5
+    np.testing.assert_allclose(tr["vx_px_s"], -w * (ev["y"] - cy), atol=1e-9)
+    np.testing.assert_allclose(tr["vy_px_s"], w * (ev["x"] - cx), atol=1e-9)
+    dot = np.abs(tr["vx_px_s"] * tr["nx"] + tr["vy_px_s"] * tr["ny"])
+    np.testing.assert_allclose(tr["lifetime_us"], 1e6 / dot)
+    # events of the circle: their normal is radial from the circle's centre (which moves < 1 px here)
+    near_circle = np.hypot(ev["x"] - 10.0, ev["y"] - 14.0) < 7
+    radial = np.stack([ev["x"][near_circle] - 10.0, ev["y"][near_circle] - 14.0], 1).astype(float)
+    cosang = np.sum(radial * np.stack([tr["nx"][near_circle], tr["ny"][near_circle]], 1), 1) / np.hypot(*radial.T)
+    assert np.all(np.abs(cosang) > 0.8)
