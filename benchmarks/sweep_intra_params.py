@@ -82,6 +82,7 @@ def main():
     report(data, IntraParams(delta_px=0.0), "delta_px=0 (no intra-pixel area)")
     report(data, IntraParams(delta_px=0.5 - 1e-9), "delta_px=0.5")
     report(data, IntraParams(refit_intercept=False), "refit through the current event")
+    report(data, IntraParams(fallback_all_points=False), "no fallback to all points")
     print("== inlier threshold (abs us, rel) ==")
     best = None
     for thr_us, thr_rel in itertools.product((10.0, 50.0, 200.0, 1000.0), (0.0, 0.05, 0.1, 0.2, 0.4)):

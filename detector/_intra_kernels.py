@@ -93,7 +93,7 @@ def _two_means(dt, n, label):
 
 @njit(cache=True)
 def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-            min_points, min_inliers, intercept, inl_best, inl_tmp, idx):
+            min_points, min_inliers, intercept, inl_best, inl_tmp, idx, kx, ky, kt):
     """RANSAC plane ``dt = a dx + b dy`` through the current event, then least squares.
 
     Candidates pass through the current event and two distinct past points of the
@@ -119,6 +119,10 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
         inl_best[i] = False
         if label[i] == 1:
             idx[m] = i
+            # contiguous copies of the kept points: the trial loop reads them directly
+            kx[m] = dx[i]
+            ky[m] = dy[i]
+            kt[m] = dt[i]
             m += 1
     if m < 2 or m + 1 < min_points:
         return False, np.nan, np.nan, -1
@@ -148,24 +152,21 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
         cnt = 1
         cost = 0.0
         for q in range(m):
-            u = idx[q]
-            r = abs(dt[u] - (a * dx[u] + b * dy[u])) - slack
+            r = abs(kt[q] - (a * kx[q] + b * ky[q])) - slack
             if r < 0.0:
                 r = 0.0
-            if r <= thr:
-                inl_tmp[u] = True
+            ok_q = r <= thr
+            inl_tmp[q] = ok_q
+            if ok_q:
                 cnt += 1
                 cost += r
-            else:
-                inl_tmp[u] = False
         if cnt > best_n or (cnt == best_n and cost < best_cost):
             best_n = cnt
             best_cost = cost
             best_a = a
             best_b = b
             for q in range(m):
-                u = idx[q]
-                inl_best[u] = inl_tmp[u]
+                inl_best[idx[q]] = inl_tmp[q]
             if stop_prob < 1.0:
                 w = (cnt - 1) / m
                 if w >= 1.0:
@@ -225,7 +226,7 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
 
 @njit(cache=True)
 def _fit_points(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                min_inliers, intercept, fallback, inl_best, inl_tmp, idx):
+                min_inliers, intercept, fallback, inl_best, inl_tmp, idx, kx, ky, kt):
     """2-means, then RANSAC on the current event's cluster; returns ``(ok, a, b)``.
 
     With ``fallback``, a degenerate cluster (see :func:`_ransac`) is replaced by
@@ -236,12 +237,12 @@ def _fit_points(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, s
     """
     _two_means(dt, n, label)
     ok, a, b, nin = _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-                            min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
+                            min_points, min_inliers, intercept, inl_best, inl_tmp, idx, kx, ky, kt)
     if nin < 0 and fallback:
         for i in range(n):
             label[i] = 1
         ok, a, b, nin = _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-                                min_points, min_inliers, intercept, inl_best, inl_tmp, idx)
+                                min_points, min_inliers, intercept, inl_best, inl_tmp, idx, kx, ky, kt)
     return ok, a, b
 
 
@@ -264,6 +265,9 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
     inl_best = np.zeros(nn, np.bool_)
     inl_tmp = np.zeros(nn, np.bool_)
     idx = np.empty(nn, np.int64)
+    kx = np.empty(nn)
+    ky = np.empty(nn)
+    kt = np.empty(nn)
     for k in range(x.shape[0]):
         xk = x[k]
         yk = y[k]
@@ -291,7 +295,7 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
                 n += 1
         ok, a, b = _fit_points(dx, dy, dt, label, n, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
                                max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-                               inl_best, inl_tmp, idx)
+                               inl_best, inl_tmp, idx, kx, ky, kt)
         if ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
@@ -324,6 +328,9 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
     inl_best = np.zeros(nn, np.bool_)
     inl_tmp = np.zeros(nn, np.bool_)
     idx = np.empty(nn, np.int64)
+    kx = np.empty(nn)
+    ky = np.empty(nn)
+    kt = np.empty(nn)
     nw = win.shape[0] // nn
     for w in range(nw):
         off = w * nn
@@ -342,7 +349,7 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
             n += 1
         ok, a, b = _fit_points(dx, dy, dt, label, n, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
                                max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-                               inl_best, inl_tmp, idx)
+                               inl_best, inl_tmp, idx, kx, ky, kt)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

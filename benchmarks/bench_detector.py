@@ -1,0 +1,110 @@
+"""Events per second of each detector stage, on stripes.mat and a synthetic 240x180 sequence.
+
+Stages: event buffer (``filter_events``), SAE + 2-means + RANSAC
+(``estimate_lifetimes`` on the kept events), edge frames at 100 fps
+(``edge_frames``), the full pipeline (``detect``: buffer + estimator) and the
+full pipeline with edge frames; Mueggler et al.'s baseline beside them when
+present. One core (numba kernels are serial); best of ``--repeat`` runs after
+a warm-up run (compilation excluded).
+
+Run: ``.venv/bin/python benchmarks/bench_detector.py [--repeat 3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _synthetic_edges import edge_events  # noqa: E402
+
+from evedge.detector import detect, edge_frames, estimate_lifetimes, filter_events  # noqa: E402
+from evedge.events import SensorSize, make_events  # noqa: E402
+
+STRIPES = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "rpg_event_lifetime" / "stripes.mat"
+
+
+def load_stripes():
+    if not STRIPES.exists():
+        print(f"stripes.mat absent ({STRIPES}): skipped")
+        return None
+    from scipy.io import loadmat
+
+    e = loadmat(str(STRIPES))["events"]
+    return make_events(e[:, 0], e[:, 1], e[:, 3], e[:, 2]), SensorSize(128, 128)
+
+
+def synthetic_240x180(rng=0):
+    """Four families of moving edges (different speeds and angles) plus 5 % uniform noise events."""
+    size = SensorSize(240, 180)
+    parts = []
+    for i, (speed, ang) in enumerate(((300, 0.2), (800, 1.9), (1500, 3.6), (2500, 5.0))):
+        ev, _ = edge_events(240, 180, speed, ang, n_edges=3, spacing_px=20, jitter_frac=0.05,
+                            subpixel_px=0.25, rng=rng + i)
+        parts.append(ev)
+    ev = np.concatenate(parts)
+    ev = ev[np.argsort(ev["t"], kind="stable")]
+    g = np.random.default_rng(rng + 99)
+    n_noise = ev.size // 20
+    noise = make_events(g.integers(0, 240, n_noise), g.integers(0, 180, n_noise),
+                        np.sort(g.integers(int(ev["t"][0]), int(ev["t"][-1]), n_noise)), g.random(n_noise) < 0.5)
+    ev = np.concatenate([ev, noise])
+    ev["p"] = g.random(ev.size) < 0.5  # mixed polarities
+    return ev[np.argsort(ev["t"], kind="stable")], size
+
+
+def best_time(fn, repeat):
+    fn()  # warm-up: numba compilation or cache load
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def bench(name, events, size, repeat):
+    n = events.size
+    span_s = (int(events["t"][-1]) - int(events["t"][0])) / 1e6
+    print(f"\n== {name}: {n:,} events, {size.width}x{size.height}, {span_s:.2f} s of recording ==")
+    kept = filter_events(events, size)
+    sub = events[kept]
+    lifetimes = estimate_lifetimes(sub, size)
+    frame_t = np.arange(int(events["t"][0]), int(events["t"][-1]), 10_000)
+    rows = [
+        ("buffer (filter_events)", n, lambda: filter_events(events, size)),
+        ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size)),
+        (f"edge frames ({frame_t.size} frames at 100 fps)", sub.size,
+         lambda: edge_frames(sub, lifetimes, size, frame_t)),
+        ("full pipeline: detect (buffer + estimator)", n, lambda: detect(events, size)),
+        ("full pipeline + edge frames", n,
+         lambda: (lambda r: edge_frames(events[r.kept], r.lifetimes[r.kept], size, frame_t))(detect(events, size))),
+    ]
+    try:
+        from evedge.detector.mueggler import estimate_lifetimes_mueggler
+
+        rows.append(("Mueggler 2015 baseline (all events)", n, lambda: estimate_lifetimes_mueggler(events, size)))
+    except ImportError:
+        print("Mueggler baseline absent: skipped")
+    for label, count, fn in rows:
+        dt = best_time(fn, repeat)
+        print(f"{label:48s} {count:>10,} ev in {dt * 1e3:8.1f} ms = {count / dt / 1e6:6.2f} M ev/s")
+    print(f"kept by buffer {kept.mean():.3f}; with estimate (of kept) {lifetimes['valid'].mean():.3f}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    stripes = load_stripes()
+    if stripes is not None:
+        bench("stripes.mat (DVS128)", *stripes, args.repeat)
+    bench("synthetic moving edges", *synthetic_240x180(), args.repeat)
+
+
+if __name__ == "__main__":
+    main()
