@@ -114,7 +114,7 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
     ----------
     out_dir : path
     quick : bool
-        Real stripes: only the first 0.4 s; simulation: 0.4 s unless ``sim_duration_s``.
+        Unused (the whole sequences are cheap); kept for a uniform signature.
     progress : bool
     seed : int
         Simulator seed.
@@ -164,20 +164,14 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
 
 def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_duration_s):
     if name == "stripes_real":
-        from evedge.events import Recording
         from evedge.io import read_events
 
         path = Path(real_path) if real_path else default_realdata_dir() / "rpg_event_lifetime" / "stripes.mat"
         if not path.exists():
             raise FileNotFoundError(f"run_lifetime: stripes recording not found: {path}")
-        rec = read_events(path)
-        if quick:
-            ev = rec.events[rec.events["t"] < rec.events["t"][0] + 400_000]
-            rec = Recording(ev, rec.sensor_size, metadata=dict(rec.metadata, truncated_to_s=0.4))
-        return rec
+        return read_events(path)
     if name == "stripes_sim":
-        duration = sim_duration_s if sim_duration_s is not None else (0.4 if quick else None)
-        return simulate_scene("stripes", seed=seed, duration_s=duration, progress=progress)
+        return simulate_scene("stripes", seed=seed, duration_s=sim_duration_s, progress=progress)
     raise ValueError(f"run_lifetime: unknown dataset {name!r} (stripes_real or stripes_sim)")
 
 
@@ -208,10 +202,14 @@ def _plot(out_dir: Path, name: str, res: dict, arrays: dict) -> list[Path]:
     paths.append(save_figure(fig, out_dir / f"lifetime_hist_{name}.png"))
 
     fig, axes = plt.subplots(1, len(keys), figsize=(3.6 * len(keys), 3.4), squeeze=False)
+    from matplotlib.colors import LogNorm
+
     finite = np.concatenate([arrays[k][1][np.isfinite(arrays[k][1])] for k in keys])
-    vmin, vmax = (np.quantile(finite, [0.02, 0.98]) / 1e3) if finite.size else (0, 1)
+    finite = finite[finite > 0]
+    vmin, vmax = (np.quantile(finite, [0.02, 0.95]) / 1e3) if finite.size else (0.1, 1.0)
+    vmax = max(vmax, vmin * 1.01)
     for ax, k in zip(axes[0], keys):
-        im = ax.imshow(arrays[k][1] / 1e3, cmap="jet", vmin=vmin, vmax=vmax)
+        im = ax.imshow(arrays[k][1] / 1e3, cmap="jet", norm=LogNorm(vmin=vmin, vmax=vmax))
         ax.set_title(METHOD_LABELS.get(k, "ground truth"), fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])

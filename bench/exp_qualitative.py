@@ -63,7 +63,7 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
         raise ValueError("run_qualitative: no rows to draw")
     plt = pyplot()
     cols = ["grey", "canny"] + list(PANEL_METHODS)
-    fig, axes = plt.subplots(len(rows), len(cols), figsize=(2.3 * len(cols), 2.0 * len(rows)), squeeze=False)
+    fig, axes = plt.subplots(len(rows), len(cols), figsize=(3.0 * len(cols), 2.5 * len(rows)), squeeze=False)
     counts = {}
     for r, row in enumerate(rows):
         counts[row["title"]] = {"canny": int(row["canny"].sum())}
@@ -83,7 +83,7 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
                 ax.set_title(label, fontsize=8)
             if c == 0:
                 ax.set_ylabel(row["title"], fontsize=7)
-    path = save_figure(fig, out_dir / "qualitative.png", dpi=120)
+    path = save_figure(fig, out_dir / "qualitative.png", dpi=130)
     out = {"rows": [row["title"] for row in rows], "edge_pixels": counts, "figures": [str(path)]}
     write_json_atomic(out_dir / "qualitative.json", out)
     return out

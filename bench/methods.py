@@ -48,13 +48,13 @@ class LifetimeRun:
 
 
 def proposed_lifetimes(events: np.ndarray, sensor_size) -> LifetimeRun:
-    """Buffer-filter the events, then estimate lifetimes with intra-pixel-area events."""
-    from evedge.detector.intra import estimate_lifetimes
-    from evedge.detector.buffer import filter_events
+    """The paper's pipeline (:func:`evedge.detector.pipeline.detect`, method ``intra``):
+    event buffer, then intra-pixel-area RANSAC lifetimes on the kept events."""
+    from evedge.detector.pipeline import detect
 
-    kept = np.asarray(filter_events(events, sensor_size), dtype=bool)
-    ev = events[kept]
-    return LifetimeRun(ev, estimate_lifetimes(ev, sensor_size), kept)
+    res = detect(events, sensor_size, method="intra")
+    kept = np.asarray(res.kept, dtype=bool)
+    return LifetimeRun(events[kept], res.lifetimes[kept], kept)
 
 
 def mueggler_lifetimes(events: np.ndarray, sensor_size) -> LifetimeRun:

@@ -28,6 +28,9 @@ from .verdicts import all_verdicts
 
 EXPERIMENTS = ("ransac", "lifetime", "similarity", "qualitative", "real")
 
+#: Frames of the simulated sequence evaluated in quick mode (evenly spread over its 2 s).
+QUICK_MAX_FRAMES = 60
+
 
 def _versions() -> dict:
     import importlib.metadata as md
@@ -94,13 +97,15 @@ NOTES = [
     "F-measure depends on that definition.",
     "Mueggler et al.'s plane is fitted in absolute time (their code's quirk, reproduced): its time tolerance "
     "grows with the time since the recording began.",
-    "Quick mode (demo): fewer RANSAC windows, shorter sequences, fewer frames and one Canny setting on the "
-    "simulated sequence; its numbers are noisier than the full run's.",
+    "Quick mode (demo): 300 instead of 1000 RANSAC windows per point, 60 instead of 201 frames of the "
+    "simulated sequence and only the paper's Canny setting (plus the exact edges) there; its numbers are "
+    "noisier than the full run's.",
 ]
 
 
 def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int = 0,
-              experiments=EXPERIMENTS, command: str = "evedge bench paper") -> dict:
+              experiments=EXPERIMENTS, command: str = "evedge bench paper", ransac_params=None,
+              similarity_recording=None, lifetime_recordings: dict | None = None, real_path=None) -> dict:
     """Run the experiments and write ``OUT/results.json`` and ``OUT/report.html``.
 
     Parameters
@@ -116,6 +121,15 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
         Subset of :data:`EXPERIMENTS`.
     command : str
         Shown in the report.
+    ransac_params : RansacStudyParams, optional
+        Overrides the study's size (default 1000 windows per point, quick 300).
+    similarity_recording : Recording, optional
+        Used instead of simulating ``shapes_translation``.
+    lifetime_recordings : dict, optional
+        ``{"stripes_real": Recording, "stripes_sim": Recording}`` (either or both)
+        used instead of reading / simulating; only the given ones are run.
+    real_path : path, optional
+        Recording with frames instead of ``slider_depth``.
 
     Returns
     -------
@@ -162,7 +176,7 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
         bar.set_postfix_str(name)
         sub = out_dir / name
         if name == "ransac":
-            rp = RansacStudyParams(seed=seed, repetitions=200 if quick else 1000)
+            rp = ransac_params or RansacStudyParams(seed=seed, repetitions=300 if quick else 1000)
             params["ransac"] = asdict(rp)
             res = attempt(name, lambda: run_ransac_study(sub, params=rp, progress=progress))
             if res:
@@ -171,20 +185,24 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
                 results["fmeasure_definitions"] = res["definitions"]
                 figures[name] = res["figures"]
         elif name == "lifetime":
-            params["lifetime"] = {"quick": quick, "sim_seed": seed,
-                                  "real_truncated_to_s": 0.4 if quick else None,
-                                  "sim_duration_s": 0.4 if quick else "scene default"}
-            res = attempt(name, lambda: run_lifetime(sub, quick=quick, progress=progress, seed=seed))
+            params["lifetime"] = {"sim_seed": seed, "sim_duration_s": "scene default",
+                                  "real": "stripes.mat, whole recording"}
+            kw = {}
+            if lifetime_recordings:
+                kw = {"recordings": lifetime_recordings, "datasets": tuple(lifetime_recordings)}
+            res = attempt(name, lambda: run_lifetime(sub, quick=quick, progress=progress, seed=seed, **kw))
             if res:
                 results["lifetime"] = res["lifetime"]
                 results["lifetime_datasets"] = res["datasets"]
                 figures[name] = res["figures"]
         elif name == "similarity":
             params["similarity"] = {"scene": "shapes_translation", "sim_seed": seed,
-                                    "max_frames": 24 if quick else None,
+                                    "max_frames": QUICK_MAX_FRAMES if quick else "all (100 Hz)",
                                     "canny_settings": [s.name for s in (CANNY_SETTINGS[:1] if quick else CANNY_SETTINGS)]
                                     + ["exact"]}
-            res = attempt(name, lambda: run_similarity(sub, quick=quick, progress=progress, seed=seed,
+            res = attempt(name, lambda: run_similarity(sub, recording=similarity_recording, quick=quick,
+                                                       progress=progress, seed=seed,
+                                                       max_frames=QUICK_MAX_FRAMES if quick else None,
                                                        keep_maps=True))
             if res:
                 kept_maps["similarity"] = res.pop("_maps")
@@ -195,7 +213,8 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
                     params["similarity"]["count_n"] = r["count_n"]
                 figures[name] = res["figures"]
         elif name == "real":
-            res = attempt(name, lambda: run_real(sub, quick=False, progress=progress, keep_maps=True))
+            res = attempt(name, lambda: run_real(sub, path=real_path, quick=False, progress=progress,
+                                                 keep_maps=True))
             if res:
                 kept_maps["real"] = res.pop("_maps")
                 for rec, r in res["recordings"].items():

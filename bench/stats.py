@@ -90,13 +90,13 @@ def histogram_peaks(values, *, n_peaks: int = 2, bins: int = 120, log10: bool = 
     lo, hi = np.quantile(z, [0.001, 0.999])
     if hi <= lo:
         hi = lo + 1e-6
+    # a margin so that a peak at either end of the range is a whole peak
+    margin = 0.05 * (hi - lo)
+    lo, hi = lo - margin, hi + margin
     counts, edges = np.histogram(z, bins=bins, range=(lo, hi))
     centres = 0.5 * (edges[:-1] + edges[1:])
     smooth = gaussian_filter1d(counts.astype(np.float64), smooth_bins, mode="constant")
-    # pad so that a peak at either end of the range can still be found
-    padded = np.concatenate([[0.0], smooth, [0.0]])
-    idx, props = find_peaks(padded, prominence=min_prominence * smooth.max())
-    idx = idx - 1
+    idx, props = find_peaks(smooth, prominence=min_prominence * smooth.max())
     if idx.size == 0:
         return []
     keep = np.sort(idx[np.argsort(props["prominences"])[::-1][:n_peaks]])

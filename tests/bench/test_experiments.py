@@ -1,0 +1,121 @@
+"""Each experiment on tiny inputs: output structure, files, sane values."""
+
+import json
+
+import numpy as np
+import pytest
+
+from evedge.bench.exp_lifetime import lifetime_image, run_lifetime
+from evedge.bench.exp_qualitative import PANEL_METHODS, rows_from_maps, run_qualitative
+from evedge.bench.exp_real import frames_inside_events, run_real
+from evedge.bench.exp_similarity import run_similarity, sections_us
+from evedge.bench.methods import METHODS
+
+
+@pytest.fixture(scope="module")
+def similarity(moving_edge, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sim")
+    return out, run_similarity(out, recording=moving_edge, scene="edge", quick=True, progress=False,
+                               keep_maps=True)
+
+
+def test_similarity_structure_and_values(similarity):
+    out, res = similarity
+    s = res["scenes"]["edge"]
+    assert set(s["cdm"]) == {"canny_matlab_0.3", "exact"}
+    for ref, per in s["cdm"].items():
+        assert set(per) == set(METHODS)
+        for m, summ in per.items():
+            assert summ["slow"]["n"] > 0 and summ["fast"]["n"] > 0
+            vals = np.asarray(s["cdm_per_frame"][ref][m])
+            assert np.all((vals >= 0) & (vals <= 100))
+    # frames before the 30 ms warm-up are skipped
+    assert min(s["frame_t_us"]) >= 30_000
+    # a clean, sharp edge: the lifetime method draws a thin line where the edge is,
+    # 1 ms accumulation (the edge needs 3.3-10 ms per pixel) is mostly empty
+    assert s["cdm"]["exact"]["proposed"]["slow"]["median"] > 80
+    assert s["cdm"]["exact"]["acc_1ms"]["slow"]["median"] < s["cdm"]["exact"]["proposed"]["slow"]["median"]
+    for name in ("similarity_edge.csv", "similarity_edge.json", "similarity_edge_over_time.png",
+                 "similarity_edge_boxplots.png"):
+        assert (out / name).stat().st_size > 0
+    data = json.loads((out / "similarity_edge.json").read_text())
+    assert "scenes" in data and "_maps" not in data
+
+
+def test_sections_parsing():
+    assert sections_us({"sections": [{"name": "slow", "start_us": 0, "end_us": 10}]}, 5) == {"slow": (0, 10)}
+    assert sections_us({"sections": [{"name": "a", "start_s": 0.5, "end_s": 1.0}]}, 5) == {"a": (500000, 1000000)}
+    assert sections_us({"sections": {"b": [0.0, 0.001]}}, 5) == {"b": (0, 1000)}
+    assert sections_us({}, 99) == {"all": (0, 100)}
+
+
+def test_lifetime_experiment_on_known_lifetimes(moving_edge, tmp_path):
+    res = run_lifetime(tmp_path, recordings={"stripes_sim": moving_edge}, datasets=("stripes_sim",),
+                       progress=False)
+    per = res["lifetime"]["stripes_sim"]
+    assert set(per) == {"proposed", "mueggler", "truth"}
+    # truth: two speeds -> two peaks at 1e6/300 and 1e6/100 us
+    tp = per["truth"]["peaks"]
+    assert len(tp) == 2
+    assert tp[0]["median"] == pytest.approx(1e6 / 300, rel=1e-6)
+    assert tp[1]["median"] == pytest.approx(1e6 / 100, rel=1e-6)
+    for m in ("proposed", "mueggler"):
+        assert 0 <= per[m]["median_rel_error"] < 1.0
+        assert per[m]["n_with_truth"] > 0
+    # exact plane data: the proposed estimator recovers the lifetimes closely
+    assert per["proposed"]["median_rel_error"] < 0.05
+    for name in ("lifetime_peaks.csv", "lifetime.json", "lifetime_hist_stripes_sim.png",
+                 "lifetime_image_stripes_sim.png"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_lifetime_image_median_per_pixel():
+    from evedge.detector.result import empty_lifetimes
+    from evedge.events import make_events
+
+    ev = make_events([0, 0, 0, 1], [0, 0, 0, 1], [1, 2, 3, 4], [1, 1, 1, 1])
+    lt = empty_lifetimes(4)
+    lt["lifetime_us"] = [10.0, 30.0, 20.0, np.nan]
+    lt["valid"] = [True, True, True, False]
+    img = lifetime_image(ev, lt, (2, 2))
+    assert img[0, 0] == 20.0
+    assert np.isnan(img[1, 1]) and np.isnan(img[0, 1])
+
+
+def test_real_experiment_on_written_ecd_folder(moving_edge, tmp_path):
+    from evedge.io import write_ecd
+
+    folder = write_ecd(tmp_path / "rec", moving_edge)
+    res = run_real(tmp_path / "out", path=folder, quick=True, progress=False, name="edge")
+    r = res["recordings"]["edge"]
+    assert len(r["frame_t_us"]) == len(frames_inside_events(moving_edge))
+    assert set(r["cdm"]) == {"canny_matlab_0.3"}
+    for m in METHODS:
+        v = np.asarray(r["cdm"]["canny_matlab_0.3"][m])
+        assert v.shape == (len(r["frame_t_us"]),)
+        assert np.all((v >= 0) & (v <= 100))
+    assert (tmp_path / "out" / "real_edge.png").stat().st_size > 0
+
+
+def test_real_experiment_on_slider_depth(realdata_dir, tmp_path):
+    path = realdata_dir / "slider_depth"
+    if not path.exists():
+        pytest.skip(f"real data absent: {path}")
+    res = run_real(tmp_path, path=path, quick=True, progress=False)
+    r = res["recordings"]["slider_depth"]
+    # the 4 frames inside the 0.0038-0.1742 s of events
+    assert list(r["frame_index"]) == [1, 2, 3, 4]
+    for m in METHODS:
+        assert np.all(np.asarray(r["cdm"]["canny_matlab_0.3"][m]) >= 0)
+
+
+def test_qualitative_panel(similarity, tmp_path):
+    _, res = similarity
+    kept = res["_maps"]
+    rows = rows_from_maps("edge", kept, [0, len(kept["times"]) - 1])
+    out = run_qualitative(tmp_path, rows=rows, progress=False)
+    assert len(out["rows"]) == 2
+    assert set(out["edge_pixels"][out["rows"][0]]) == {"canny", *PANEL_METHODS}
+    assert (tmp_path / "qualitative.png").stat().st_size > 0
+    with pytest.raises(ValueError, match="no rows"):
+        run_qualitative(tmp_path, rows=[])

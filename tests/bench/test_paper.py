@@ -1,0 +1,77 @@
+"""The runner end to end on tiny inputs: results.json keys, one self-contained report.html; CLI."""
+
+import json
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from evedge.bench.cli import bench
+from evedge.bench.exp_ransac import RansacStudyParams
+from evedge.bench.paper import run_paper
+from evedge.bench.report import write_report
+
+
+@pytest.fixture(scope="module")
+def tiny_run(moving_edge, tmp_path_factory):
+    from evedge.io import write_ecd
+
+    tmp = tmp_path_factory.mktemp("paper")
+    folder = write_ecd(tmp / "rec", moving_edge)
+    out = tmp / "out"
+    res = run_paper(out, quick=True, progress=False,
+                    ransac_params=RansacStudyParams(repetitions=5, noise_levels_px=(0.0, 0.5)),
+                    similarity_recording=moving_edge, lifetime_recordings={"stripes_sim": moving_edge},
+                    real_path=folder)
+    return out, res
+
+
+def test_results_json_has_the_keys(tiny_run):
+    out, res = tiny_run
+    assert res["errors"] == {}
+    data = json.loads((out / "results.json").read_text())
+    for key in ("fmeasure", "lifetime", "cdm", "real", "verdicts", "params", "run"):
+        assert key in data, key
+    assert set(data["fmeasure"]) == {"global", "scattered"}
+    assert "intra_delta_0.25" in data["fmeasure"]["global"]
+    assert "median_rel_error" in data["lifetime"]["stripes_sim"]["proposed"]
+    scene = next(iter(data["cdm"]))
+    assert set(data["cdm"][scene]["exact"]["proposed"]) >= {"slow", "fast"}
+    rec = next(iter(data["real"]))
+    assert "cdm_per_frame" in data["real"][rec]["proposed"]
+    statuses = {v["status"] for v in data["verdicts"]}
+    assert statuses <= {"holds", "fails", "not checked"}
+    assert any(v["claim"].startswith("Under global noise") for v in data["verdicts"])
+    assert data["run"]["versions"]["numpy"]
+
+
+def test_report_is_one_self_contained_page(tiny_run):
+    out, res = tiny_run
+    text = (out / "report.html").read_text()
+    assert text.startswith("<!doctype html>")
+    assert "Do the paper's claims hold?" in text
+    # every figure is inlined; no reference to files beside the page
+    n_figs = sum(len(v) for v in res["figures"].values())
+    assert text.count("data:image/png;base64,") == n_figs >= 8
+    assert not re.search(r"src=['\"](?!data:)", text)
+
+
+def test_failing_experiment_is_reported_not_fatal(tmp_path):
+    res = run_paper(tmp_path, quick=True, progress=False, experiments=("real",),
+                    real_path=tmp_path / "does_not_exist")
+    assert "real" in res["errors"]
+    assert "FAILED" in (tmp_path / "report.html").read_text() or "failed" in (tmp_path / "report.html").read_text()
+
+
+def test_write_report_minimal(tmp_path):
+    path = write_report(tmp_path / "r.html", {"verdicts": [], "run": {}}, figures={}, notes=["a note"])
+    assert "a note" in path.read_text()
+
+
+def test_cli_ransac_and_unknown_experiment(tmp_path):
+    runner = CliRunner()
+    r = runner.invoke(bench, ["ransac", "-o", str(tmp_path), "--repetitions", "3", "--no-progress"])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "ransac_study.json").exists()
+    with pytest.raises(ValueError, match="unknown experiments"):
+        run_paper(tmp_path, experiments=("nope",))

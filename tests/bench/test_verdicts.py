@@ -1,0 +1,53 @@
+"""Verdicts are computed from the numbers: both outcomes on synthetic results."""
+
+from evedge.bench.verdicts import all_verdicts, cdm_verdicts, intra_verdicts, lifetime_verdicts, real_verdicts
+
+
+def _summ(median, n=5):
+    return {"median": median, "q1": median - 1, "q3": median + 1, "mean": median, "n": n}
+
+
+def _cdm(prop_slow, prop_fast, others):
+    per = {"proposed": {"slow": _summ(prop_slow), "fast": _summ(prop_fast), "all": _summ(0)}}
+    for m, (s, f) in others.items():
+        per[m] = {"slow": _summ(s), "fast": _summ(f), "all": _summ(0)}
+    return {"scene": {"exact": per}}
+
+
+def test_cdm_claims_hold_and_fail():
+    good = _cdm(80, 78, {"mueggler": (70, 50), "acc_1ms": (20, 40), "acc_30ms": (60, 30)})
+    v = cdm_verdicts(good)
+    assert [x["status"] for x in v] == ["holds", "holds"]
+    bad = _cdm(80, 60, {"mueggler": (70, 85), "acc_1ms": (20, 40), "acc_30ms": (60, 30)})
+    v = cdm_verdicts(bad)
+    assert v[0]["status"] == "fails" and "mueggler in the fast section" in v[0]["evidence"]
+    # gap proposed 20 vs mueggler 15 -> not the most consistent
+    assert v[1]["status"] == "fails" and "mueggler" in v[1]["evidence"]
+    assert cdm_verdicts({})[0]["status"] == "not checked"
+
+
+def _fm(f_no, f_yes, e_no, e_yes):
+    def res(use_intra, delta, f, e):
+        return {"use_intra": use_intra, "delta_px": delta, "noise_px": [0.0, 0.5],
+                "f_measure": [1.0, f], "lifetime_rel_error_mean": [0.0, e]}
+    return {"no_intra": res(False, 0.0, f_no, e_no), "intra_delta_0.25": res(True, 0.25, f_yes, e_yes)}
+
+
+def test_intra_claims():
+    v = intra_verdicts({"global": _fm(0.5, 0.7, 0.2, 0.2), "scattered": _fm(0.9, 0.9, 0.02, 0.05)})
+    assert [x["status"] for x in v] == ["holds", "holds"]
+    v = intra_verdicts({"global": _fm(0.7, 0.5, 0.2, 0.2), "scattered": _fm(0.9, 0.95, 0.05, 0.02)})
+    assert [x["status"] for x in v] == ["fails", "fails"]
+    assert intra_verdicts({})[0]["status"] == "not checked"
+
+
+def test_lifetime_and_real_claims():
+    lt = {"d": {"proposed": {"peaks": [{"fwhm_log10": 0.1}], "median_rel_error": 0.05},
+                "mueggler": {"peaks": [{"fwhm_log10": 0.2}], "median_rel_error": 0.1}}}
+    assert lifetime_verdicts(lt)[0]["status"] == "holds"
+    lt["d"]["proposed"]["median_rel_error"] = 0.5
+    assert lifetime_verdicts(lt)[0]["status"] == "fails"
+    real = {"r": {"proposed": {"median": {"c": 50.0}}, "acc_30ms": {"median": {"c": 60.0}}}}
+    v = real_verdicts(real)
+    assert v[0]["status"] == "fails" and "acc_30ms" in v[0]["evidence"]
+    assert len(all_verdicts({"real": real, "lifetime": lt})) >= 4
