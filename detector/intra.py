@@ -92,7 +92,7 @@ import numpy as np
 
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream
-from .result import LIFETIME_DTYPE, empty_lifetimes
+from .result import empty_lifetimes
 from .sae import SurfaceOfActiveEvents
 
 __all__ = ["IntraParams", "IntraPixelLifetime", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows"]

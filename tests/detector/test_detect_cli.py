@@ -56,3 +56,18 @@ def test_detect_time_method_and_bad_file(tmp_path, edge_events):
     assert res.exit_code != 0 and "bad.txt" in res.output
     res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--times", "a,b"])
     assert res.exit_code != 0 and "--times" in res.output
+
+
+def test_detect_baseline_methods(tmp_path, edge_events):
+    ev, _ = edge_events(16, 16, 500, 0.4, n_edges=2, spacing_px=8)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    for method, extra in (("mueggler", []), ("count", ["--count", "50"])):
+        out = tmp_path / method
+        res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "16x16", "--method", method,
+                                          "--times", "10000,20000", "--quiet", *extra])
+        assert res.exit_code == 0, res.output
+        with h5py.File(out / "detection.h5") as f:
+            assert f["edges/images"].shape == (2, 16, 16)
+            assert f["edges/images"][1].any()
+            assert ("lifetimes" in f) == (method == "mueggler")

@@ -8,7 +8,6 @@ the flow is horizontal.
 """
 
 import numpy as np
-import pytest
 
 from evedge.detector import detect
 from evedge.events import SensorSize
