@@ -58,6 +58,22 @@ def _max_log_change(i0, i1, eps):
 
 
 @njit(cache=True)
+def _max_log_gradient(img, width, height, eps):
+    """max over pixels of |grad L| (forward differences, px^-1) of ``L = log(img + eps)``."""
+    g = 0.0
+    for y in range(height):
+        for x in range(width):
+            i = y * width + x
+            li = math.log(img[i] + eps)
+            gx = math.log(img[i + 1] + eps) - li if x + 1 < width else 0.0
+            gy = math.log(img[i + width] + eps) - li if y + 1 < height else 0.0
+            m = math.sqrt(gx * gx + gy * gy)
+            if m > g:
+                g = m
+    return g
+
+
+@njit(cache=True)
 def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
              seq, jitter_s, jitter_seed, fill, out_pix, out_t_true, out_t, out_p):
     """Events of every pixel between samples ``(t0, i0)`` and ``(t1, i1)`` (linear intensity).

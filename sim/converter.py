@@ -5,15 +5,24 @@ threshold mismatch, refractory period, background-activity noise, latency
 jitter, per-event ground truth, counter-based randomness (chunk-independent)
 and two-pass output sizing (count, then fill) as in esim_torch.
 
-Adaptive sampling: after a sample at ``t`` the next step ``dt`` is proposed as
-``min(1 / min_rate_hz, max_step_px / v_max, dt_prev * min(2, 0.9 lambda C / dL_prev))``
-where ``dL_prev`` is the previous step's largest ``|Delta L|`` over the image,
-``C`` the smallest contrast threshold of the sensor and ``v_max`` the
-renderer's speed bound. The step is then *verified*: if the rendered
-``max |Delta L|`` exceeds ``lambda C`` the step is shrunk and re-rendered.
-So every accepted step changes no pixel's log intensity by more than
-``lambda C`` (unless the step hit ``min_step_s``), ESIM's rule [1]_ made a
-guarantee instead of a prediction.
+Adaptive sampling, two modes (``sampling``):
+
+- ``"verified"`` (default for analytic renderers, whose intensity is a
+  continuous function of time): after a sample at ``t`` the next step is
+  proposed as ``min(1 / min_rate_hz, max_step_px / v_max,
+  dt_prev * min(2, 0.9 lambda C / dL_prev))`` where ``dL_prev`` is the
+  previous step's largest ``|Delta L|`` over the image, ``C`` the smallest
+  contrast threshold of the sensor and ``v_max`` the renderer's speed bound.
+  The step is then *verified*: if the rendered ``max |Delta L|`` exceeds
+  ``lambda C`` the step is shrunk and re-rendered. So every accepted step
+  changes no pixel's log intensity by more than ``lambda C`` (unless it hit
+  ``min_step_s``): ESIM's rule [1]_ made a guarantee.
+- ``"predicted"`` (default for other renderers, e.g. the supersampled 3-D
+  renderer, whose intensity jumps in small steps as sub-samples flip, so
+  that shrinking a step does not shrink ``|Delta L|``): ESIM's rule
+  ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
+  differences of the current sample, capped as above by ``1 / min_rate_hz``
+  and ``max_step_px / v_max``.
 
 References
 ----------
@@ -28,7 +37,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _convert, _max_log_change, _noise, _noise_first_arrivals
+from ._events import _convert, _max_log_change, _max_log_gradient, _noise, _noise_first_arrivals
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
 from evedge.events import EVENT_DTYPE
@@ -66,6 +75,10 @@ class ConverterParams:
         Largest image displacement per step (px), from the speed bound.
     min_step_s : float
         Smallest step (guards against stalls on discontinuous intensity).
+    sampling : str
+        ``"auto"`` (verified for renderers with exact geometry, i.e.
+        :class:`~evedge.sim.renderer.GeometricTruth`, predicted otherwise),
+        ``"verified"`` or ``"predicted"`` (see the module docstring).
     """
 
     contrast_pos: float = 0.2
@@ -80,9 +93,14 @@ class ConverterParams:
     min_rate_hz: float = 30.0
     max_step_px: float = 0.5
     min_step_s: float = 1e-6
+    sampling: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.sampling not in ("auto", "verified", "predicted"):
+            raise ValueError(f"ConverterParams.sampling must be 'auto', 'verified' or 'predicted', got {self.sampling!r}")
         for name, value in asdict(self).items():
+            if name == "sampling":
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ConverterParams.{name} must be a finite number, got {value!r}")
             object.__setattr__(self, name, float(value))
@@ -139,6 +157,8 @@ class EventConverter:
         self.width = int(renderer.width)
         self.height = int(renderer.height)
         self._geometric = isinstance(renderer, GeometricTruth)
+        mode = params.sampling
+        self.verified = self._geometric if mode == "auto" else mode == "verified"
         self.reset()
 
     def reset(self) -> None:
@@ -176,7 +196,9 @@ class EventConverter:
     # ------------------------------------------------------------------ sampling
     def _propose(self) -> float:
         p = self.params
-        dt = min(1.0 / p.min_rate_hz, self._dt)
+        dt = 1.0 / p.min_rate_hz
+        if self.verified:
+            dt = min(dt, self._dt)
         vmax = float(self.renderer.max_speed_px_s(self.t, min(self.duration_s, self.t + 1.0 / p.min_rate_hz)))
         if vmax > 0:
             dt = min(dt, p.max_step_px / vmax)
@@ -186,6 +208,18 @@ class EventConverter:
         p = self.params
         limit = p.lambda_ * self._c_min
         dt = self._propose()
+        if not self.verified:
+            vmax = float(self.renderer.max_speed_px_s(self.t, min(self.duration_s, self.t + dt)))
+            grad = _max_log_gradient(self._i, self.width, self.height, p.log_eps)
+            if vmax > 0 and grad > 0:
+                dt = max(p.min_step_s, min(dt, limit / (vmax * grad)))
+            t1 = min(self.t + dt, self.duration_s)
+            i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()
+            self._interval(self.t, t1, self._i, i1)
+            self.t = t1
+            self._i = i1
+            self.n_samples += 1
+            return
         while True:
             t1 = min(self.t + dt, self.duration_s)
             i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()

@@ -207,6 +207,7 @@ def _params(t: _Table) -> ConverterParams:
         min_rate_hz=t.number("min_rate_hz", d.min_rate_hz, lo=0, lo_open=True),
         max_step_px=t.number("max_step_px", d.max_step_px, lo=0, lo_open=True),
         min_step_s=t.number("min_step_s", d.min_step_s, lo=0, lo_open=True),
+        sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted")),
     )
     t.finish()
     return ConverterParams(**kw)

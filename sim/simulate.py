@@ -119,7 +119,9 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         ev_parts, tr_parts = [], []
         next_frame = 0
         t_done = 0.0
-        with tqdm(total=round(scene.duration_s, 6), unit="s", desc=f"simulate {scene.name}",
+        done_ms = 0
+        # progress in simulated milliseconds (integers: no float overshoot of the bar)
+        with tqdm(total=int(round(scene.duration_s * 1000)), unit="ms", desc=f"simulate {scene.name}",
                   disable=not progress, file=sys.stderr) as bar:
             while not conv.done:
                 target = min(scene.duration_s, t_done + chunk_s)
@@ -130,7 +132,9 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
                     images[next_frame] = renderer.intensity(float(frame_t[next_frame]))
                     edges[next_frame] = renderer.edges(float(frame_t[next_frame]))
                     next_frame += 1
-                bar.update(round(conv.t - t_done, 6))
+                now_ms = min(int(round(conv.t * 1000)), bar.total)
+                bar.update(now_ms - done_ms)
+                done_ms = now_ms
                 t_done = conv.t
     finally:
         renderer.close()
