@@ -58,7 +58,6 @@ def _two_means(dt, n, label):
     for _ in range(100):
         changed = False
         s0 = 0.0
-        n0 = 0
         s1 = 0.0
         n1 = 0
         lc = 1 if abs(0.0 - c1) <= abs(0.0 - c0) else 0
@@ -67,20 +66,17 @@ def _two_means(dt, n, label):
             cur = lc
         if lc == 1:
             n1 += 1
-        else:
-            n0 += 1
+        # branch-free accumulation (labels are unpredictable; adding 0.0 changes no sum)
         for i in range(n):
             v = dt[i]
-            li = 1 if abs(v - c1) <= abs(v - c0) else 0
-            if li != label[i]:
-                changed = True
-                label[i] = li
-            if li == 1:
-                s1 += v
-                n1 += 1
-            else:
-                s0 += v
-                n0 += 1
+            near1 = abs(v - c1) <= abs(v - c0)
+            li = np.int8(1) if near1 else np.int8(0)
+            changed |= li != label[i]
+            label[i] = li
+            s1 += v if near1 else 0.0
+            s0 += 0.0 if near1 else v
+            n1 += li
+        n0 = n + 1 - n1  # the current event and the past points not in cluster 1
         if not changed:
             break
         if n0 > 0:
@@ -117,13 +113,13 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
     m = 0
     for i in range(n):
         inl_best[i] = False
-        if label[i] == 1:
-            idx[m] = i
-            # contiguous copies of the kept points: the trial loop reads them directly
-            kx[m] = dx[i]
-            ky[m] = dy[i]
-            kt[m] = dt[i]
-            m += 1
+        # branch-free compaction into contiguous copies of the kept points (the
+        # trial loop reads them directly); a slot is overwritten unless kept
+        idx[m] = i
+        kx[m] = dx[i]
+        ky[m] = dy[i]
+        kt[m] = dt[i]
+        m += 1 if label[i] == 1 else 0
     if m < 2 or m + 1 < min_points:
         return False, np.nan, np.nan, -1
     best_n = 0
@@ -157,9 +153,9 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
                 r = 0.0
             ok_q = r <= thr
             inl_tmp[q] = ok_q
-            if ok_q:
-                cnt += 1
-                cost += r
+            # branch-free: whether a point is an inlier is unpredictable
+            cnt += 1 if ok_q else 0
+            cost += r if ok_q else 0.0
         if cnt > best_n or (cnt == best_n and cost < best_cost):
             best_n = cnt
             best_cost = cost
@@ -193,17 +189,20 @@ def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_
     sxt = 0.0
     syt = 0.0
     for q in range(m):
-        u = idx[q]
-        if inl_best[u]:
-            s1 += 1.0
-            sx += dx[u]
-            sy += dy[u]
-            st += dt[u]
-            sxx += dx[u] * dx[u]
-            sxy += dx[u] * dy[u]
-            syy += dy[u] * dy[u]
-            sxt += dx[u] * dt[u]
-            syt += dy[u] * dt[u]
+        # branch-free: a weight of 0 or 1 (adding 0.0 changes no sum)
+        wq = 1.0 if inl_best[idx[q]] else 0.0
+        xq = kx[q] * wq
+        yq = ky[q] * wq
+        tq = kt[q] * wq
+        s1 += wq
+        sx += xq
+        sy += yq
+        st += tq
+        sxx += xq * kx[q]
+        sxy += xq * ky[q]
+        syy += yq * ky[q]
+        sxt += xq * kt[q]
+        syt += yq * kt[q]
     if intercept:
         # centred sums: least squares with a free time offset (the current event
         # becomes one point among the inliers instead of a fixed anchor)
