@@ -16,7 +16,7 @@ from ._files import save_figure, write_csv_atomic, write_json_atomic
 from ._plot import METHOD_COLOURS, pyplot
 from .canny import CANNY_SETTINGS
 from .frame_eval import canny_references, cdm_table, summarise
-from .methods import METHOD_LABELS, METHODS, edge_maps
+from .methods import DIAGNOSTIC_METHODS, METHOD_LABELS, METHODS, edge_maps
 
 #: Where the shared real recordings live, relative to the repository (``../shared/realdata``).
 def default_realdata_dir() -> Path:
@@ -81,7 +81,7 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     settings = CANNY_SETTINGS[:1] if quick else CANNY_SETTINGS
     refs = canny_references(grey, settings)
     count_n = count_for(refs)
-    maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=METHODS, count_n=count_n)
+    maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=METHODS + DIAGNOSTIC_METHODS, count_n=count_n)
     table = cdm_table(maps, refs, progress=progress, desc=f"CDM {name}")
     summary = {ref: {m: summarise(v) for m, v in per.items()} for ref, per in table.items()}
     rows = [[name, ref, m, i, int(times[i]), float(v[i])] for ref, per in table.items()

@@ -22,7 +22,7 @@ from ._plot import METHOD_COLOURS, pyplot
 from .canny import CANNY_SETTINGS
 from .exp_real import count_for
 from .frame_eval import canny_references, cdm_table, summarise
-from .methods import METHOD_LABELS, METHODS, edge_maps
+from .methods import DIAGNOSTIC_METHODS, METHOD_LABELS, METHODS, edge_maps
 
 #: Frames earlier than this after the first event are skipped (the longest window, 30 ms).
 WARMUP_US = 30_000
@@ -82,7 +82,7 @@ def sections_us(metadata: dict, t_end_us: int) -> dict[str, tuple[int, int]]:
 def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation", quick: bool = False,
                    progress: bool = True, seed: int = 0, duration_s: float | None = None,
                    frame_rate_hz: float | None = None, max_frames: int | None = None,
-                   keep_maps: bool = False) -> dict:
+                   keep_maps: bool = False, diagnostics: bool = True) -> dict:
     """CDM over time against Canny and exact edges, per method; box plots per section.
 
     Parameters
@@ -102,6 +102,10 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         Evaluate at most this many frames, evenly spread over the sequence.
     keep_maps : bool
         Also return grey frames and maps (for the qualitative panel).
+    diagnostics : bool
+        Also run :data:`~evedge.bench.methods.DIAGNOSTIC_METHODS` and compute
+        the explanatory numbers (edge pixels per reference pixel, lifetime
+        errors against the simulator's truth, per section).
 
     Returns
     -------
@@ -135,14 +139,11 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         if np.all(pos < et.size) and np.array_equal(et[np.minimum(pos, et.size - 1)], times):
             refs["exact"] = rec.edges.images[pos].astype(bool)
     count_n = count_for(refs)
-    maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=METHODS, count_n=count_n)
+    methods = METHODS + (DIAGNOSTIC_METHODS if diagnostics else ())
+    maps, runs = edge_maps(rec.events, rec.sensor_size, times, methods=methods, count_n=count_n)
     table = cdm_table(maps, refs, progress=progress, desc=f"CDM {scene}")
     sections = sections_us(rec.metadata, t_last)
-    frame_section = []
-    for t in times:
-        hit = [name for name, (a, b) in sections.items() if a <= t < b]
-        frame_section.append(hit[0] if hit else None)
-    frame_section = np.array(frame_section, dtype=object)
+    frame_section = np.array([_section_of(sections, t) for t in times], dtype=object)
     summary = {}
     for ref, per in table.items():
         summary[ref] = {}
@@ -157,12 +158,67 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
     res = {"sections_us": sections, "frame_t_us": times, "frame_section": list(frame_section),
            "canny_settings": [s.as_dict() for s in settings], "cdm_per_frame": table, "cdm": summary,
            "count_n": count_n, "n_events": int(rec.events.size),
+           "diagnostics": _diagnostics(rec, maps, refs, runs, sections, frame_section) if diagnostics else {},
            "metadata": {k: v for k, v in rec.metadata.items() if isinstance(v, (str, int, float, bool))}}
     out = {"scenes": {scene: res}, "figures": [str(p) for p in figures]}
     write_json_atomic(out_dir / f"similarity_{scene}.json", out)
     if keep_maps:
         out["_maps"] = {"grey": grey, "times": times, "canny": refs[next(iter(refs))], "maps": maps,
                         "frame_section": frame_section, "exact": refs.get("exact")}
+    return out
+
+
+def _section_of(sections: dict, t: int):
+    hit = [name for name, (a, b) in sections.items() if a <= t < b]
+    return hit[0] if hit else None
+
+
+def _diagnostics(rec, maps, refs, runs, sections, frame_section) -> dict:
+    """Numbers that explain the CDM: map sizes and lifetime errors per section.
+
+    ``pixel_ratio[ref][method][section]``: mean edge pixels of the method's maps
+    over mean edge pixels of the reference (> 1: thick or trailing edges,
+    < 1: sparse edges). ``lifetime[method][section]``: over the signal events
+    of the section with a true lifetime, the share with an estimate
+    (``coverage``), the median relative error, and the shares estimated more
+    than twice too long (``over_2x``, trails) or too short (``under_2x``).
+    """
+    out: dict = {"pixel_ratio": {}, "lifetime": {}}
+    for ref, rstack in refs.items():
+        out["pixel_ratio"][ref] = {}
+        for m, stack in maps.items():
+            out["pixel_ratio"][ref][m] = {}
+            for name in sections:
+                sel = frame_section == name
+                denom = rstack[sel].sum(axis=(1, 2)).mean() if sel.any() else np.nan
+                num = stack[sel].sum(axis=(1, 2)).mean() if sel.any() else np.nan
+                out["pixel_ratio"][ref][m][name] = float(num / denom) if denom and np.isfinite(denom) else np.nan
+    truth = rec.truth
+    if truth is None or "lifetime_us" not in (truth.dtype.names or ()):
+        return out
+    true_lt = np.asarray(truth["lifetime_us"], dtype=np.float64)
+    if "is_signal" in truth.dtype.names:
+        true_lt = np.where(truth["is_signal"], true_lt, np.nan)
+    sec_of_event = np.full(rec.events.size, None, dtype=object)
+    for name, (a, b) in sections.items():
+        sec_of_event[(rec.events["t"] >= a) & (rec.events["t"] < b)] = name
+    for m, run in runs.items():
+        tr = true_lt if run.kept is None else true_lt[run.kept]
+        sec = sec_of_event if run.kept is None else sec_of_event[run.kept]
+        est = np.where(run.lifetimes["valid"], run.lifetimes["lifetime_us"], np.nan)
+        out["lifetime"][m] = {}
+        for name in sections:
+            sel = (sec == name) & np.isfinite(tr) & (tr > 0)
+            n = int(sel.sum())
+            ok = sel & np.isfinite(est)
+            ratio = est[ok] / tr[ok]
+            out["lifetime"][m][name] = {
+                "n_signal": n,
+                "coverage": float(ok.sum() / n) if n else np.nan,
+                "median_rel_error": float(np.median(np.abs(ratio - 1))) if ratio.size else np.nan,
+                "over_2x": float(np.mean(ratio > 2)) if ratio.size else np.nan,
+                "under_2x": float(np.mean(ratio < 0.5)) if ratio.size else np.nan,
+            }
     return out
 
 

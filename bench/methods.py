@@ -28,6 +28,16 @@ import numpy as np
 
 METHODS = ("proposed", "mueggler", "acc_1ms", "acc_30ms", "acc_count")
 
+#: Extra variants run only to explain results, never used in the verdicts.
+#: ``mueggler_t0``: Mueggler et al. with its time origin 1 s before the first
+#: event; its plane is fitted in absolute time, so its inlier tolerance grows
+#: with the time since the origin (see :mod:`evedge.detector.mueggler`). This
+#: variant shows how much of its behaviour early in a recording is that quirk.
+DIAGNOSTIC_METHODS = ("mueggler_t0",)
+
+#: Time origin shift of ``mueggler_t0``.
+MUEGGLER_T0_SHIFT_US = 1_000_000
+
 #: Human-readable method names for figures and the report.
 METHOD_LABELS = {
     "proposed": "proposed (intra-pixel-area)",
@@ -35,6 +45,7 @@ METHOD_LABELS = {
     "acc_1ms": "1 ms accumulation",
     "acc_30ms": "30 ms accumulation",
     "acc_count": "fixed-count accumulation",
+    "mueggler_t0": "Mueggler, time origin 1 s earlier (diagnostic)",
 }
 
 
@@ -64,6 +75,14 @@ def mueggler_lifetimes(events: np.ndarray, sensor_size) -> LifetimeRun:
     return LifetimeRun(events, estimate_lifetimes_mueggler(events, sensor_size))
 
 
+def mueggler_t0_lifetimes(events: np.ndarray, sensor_size) -> LifetimeRun:
+    """Mueggler et al. 2015 with the time origin :data:`MUEGGLER_T0_SHIFT_US` before the first event."""
+    from evedge.detector.mueggler import estimate_lifetimes_mueggler
+
+    t0 = int(events["t"][0]) - MUEGGLER_T0_SHIFT_US if events.size else 0
+    return LifetimeRun(events, estimate_lifetimes_mueggler(events, sensor_size, time_origin_us=t0))
+
+
 def edge_maps(events: np.ndarray, sensor_size, times_us, *, methods=METHODS, count_n: int = 2000,
               lifetime_runs: dict | None = None) -> tuple[dict[str, np.ndarray], dict[str, LifetimeRun]]:
     """Edge maps of each method at each time.
@@ -91,9 +110,9 @@ def edge_maps(events: np.ndarray, sensor_size, times_us, *, methods=METHODS, cou
     from evedge.detector.accumulate import accumulate_count, accumulate_time
     from evedge.detector.edges import edge_frames
 
-    unknown = [m for m in methods if m not in METHODS]
+    unknown = [m for m in methods if m not in METHODS + DIAGNOSTIC_METHODS]
     if unknown:
-        raise ValueError(f"edge_maps: unknown methods {unknown}; choose from {METHODS}")
+        raise ValueError(f"edge_maps: unknown methods {unknown}; choose from {METHODS + DIAGNOSTIC_METHODS}")
     if isinstance(count_n, bool) or int(count_n) < 1:
         raise ValueError(f"edge_maps: count_n must be a positive integer, got {count_n!r}")
     times = np.asarray(times_us, dtype=np.int64)
@@ -105,9 +124,9 @@ def edge_maps(events: np.ndarray, sensor_size, times_us, *, methods=METHODS, cou
                 runs[m] = proposed_lifetimes(events, sensor_size)
             r = runs[m]
             maps[m] = np.asarray(edge_frames(r.events, r.lifetimes, sensor_size, times, clear_behind=False))
-        elif m == "mueggler":
+        elif m in ("mueggler", "mueggler_t0"):
             if m not in runs:
-                runs[m] = mueggler_lifetimes(events, sensor_size)
+                runs[m] = (mueggler_lifetimes if m == "mueggler" else mueggler_t0_lifetimes)(events, sensor_size)
             r = runs[m]
             maps[m] = np.asarray(edge_frames(r.events, r.lifetimes, sensor_size, times, clear_behind=True))
         elif m == "acc_1ms":

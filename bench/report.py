@@ -123,6 +123,28 @@ def _cdm_section(cdm: dict) -> str:
     return "".join(parts)
 
 
+def _diagnostics_section(diag: dict) -> str:
+    parts = []
+    for scene, d in diag.items():
+        for ref, per in (d.get("pixel_ratio") or {}).items():
+            sections = [s for s in next(iter(per.values()))]
+            rows = [[_e(METHOD_LABELS.get(m, m))] + [_num(v.get(s), 2) for s in sections] for m, v in per.items()]
+            parts.append(f"<h3>{_e(scene)}: edge pixels per pixel of {_e(ref)} (mean per section)</h3>"
+                         + _table(["method"] + sections, rows))
+        lt = d.get("lifetime") or {}
+        if lt:
+            rows = []
+            for m, per in lt.items():
+                for s, v in per.items():
+                    rows.append([_e(METHOD_LABELS.get(m, m)), _e(s), _e(v["n_signal"]), _num(100 * v["coverage"], 1),
+                                 _num(v["median_rel_error"], 3), _num(100 * v["over_2x"], 1),
+                                 _num(100 * v["under_2x"], 1)])
+            parts.append(f"<h3>{_e(scene)}: lifetimes against the simulator's truth</h3>"
+                         + _table(["method", "section", "signal events", "% estimated", "median rel. error",
+                                   "% > 2x too long", "% < half"], rows, left_cols=2))
+    return "".join(parts)
+
+
 def _real_section(real: dict, frames: dict) -> str:
     parts = []
     for rec, per_method in real.items():
@@ -186,6 +208,9 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
         h += ["<h2>3. Similarity over time, slow then fast (paper fig. 9)</h2>"]
         h += [_img(p) for p in figures.get("similarity", [])]
         h.append(_cdm_section(results["cdm"]))
+        if results.get("cdm_diagnostics"):
+            h += ["<p class='small'>Diagnostics (explain the CDM; not used to rank methods):</p>",
+                  _diagnostics_section(results["cdm_diagnostics"])]
     if figures.get("qualitative"):
         h += ["<h2>4. Qualitative panel (paper figs. 1, 8)</h2>"]
         h += [_img(p) for p in figures["qualitative"]]

@@ -9,7 +9,7 @@ from evedge.bench.exp_lifetime import lifetime_image, run_lifetime
 from evedge.bench.exp_qualitative import PANEL_METHODS, rows_from_maps, run_qualitative
 from evedge.bench.exp_real import frames_inside_events, run_real
 from evedge.bench.exp_similarity import run_similarity, sections_us
-from evedge.bench.methods import METHODS
+from evedge.bench.methods import DIAGNOSTIC_METHODS, METHODS
 
 
 @pytest.fixture(scope="module")
@@ -24,11 +24,18 @@ def test_similarity_structure_and_values(similarity):
     s = res["scenes"]["edge"]
     assert set(s["cdm"]) == {"canny_matlab_0.3", "exact"}
     for ref, per in s["cdm"].items():
-        assert set(per) == set(METHODS)
+        assert set(per) == set(METHODS) | set(DIAGNOSTIC_METHODS)
         for m, summ in per.items():
             assert summ["slow"]["n"] > 0 and summ["fast"]["n"] > 0
             vals = np.asarray(s["cdm_per_frame"][ref][m])
             assert np.all((vals >= 0) & (vals <= 100))
+    # diagnostics: exact straight edge -> the proposed lifetimes match the truth,
+    # its maps are about as large as the reference, 1 ms maps much smaller
+    d = s["diagnostics"]
+    assert d["lifetime"]["proposed"]["slow"]["median_rel_error"] < 0.05
+    assert d["lifetime"]["proposed"]["slow"]["over_2x"] < 0.05
+    assert 0.5 < d["pixel_ratio"]["exact"]["proposed"]["slow"] < 2.0
+    assert d["pixel_ratio"]["exact"]["acc_1ms"]["slow"] < 0.5
     # frames before the 30 ms warm-up are skipped
     assert min(s["frame_t_us"]) >= 30_000
     # a clean, sharp edge: the lifetime method draws a thin line where the edge is,

@@ -26,6 +26,17 @@ def test_cdm_claims_hold_and_fail():
     assert cdm_verdicts({})[0]["status"] == "not checked"
 
 
+def test_cdm_verdict_explains_a_loss_and_checks_the_count_baseline():
+    bad = _cdm(80, 60, {"mueggler": (70, 85), "acc_1ms": (20, 40), "acc_30ms": (60, 30), "acc_count": (70, 70)})
+    diag = {"scene": {"pixel_ratio": {"exact": {"proposed": {"fast": 1.8}, "mueggler": {"fast": 0.9}}},
+                      "lifetime": {"proposed": {"fast": {"coverage": 0.9, "median_rel_error": 0.2,
+                                                         "over_2x": 0.07, "under_2x": 0.01}}}}}
+    v = cdm_verdicts(bad, diag)
+    assert "Why:" in v[0]["evidence"] and "1.80" in v[0]["evidence"] and "7.0% more than 2x" in v[0]["evidence"]
+    count = [x for x in v if "fixed-count" in x["claim"]]
+    assert count and count[0]["status"] == "fails"  # 60 < 70 in the fast section
+
+
 def _fm(f_no, f_yes, e_no, e_yes):
     def res(use_intra, delta, f, e):
         return {"use_intra": use_intra, "delta_px": delta, "noise_px": [0.0, 0.5],
