@@ -80,7 +80,7 @@ def main():
     print("== defaults and delta ==")
     report(data, base, "defaults")
     report(data, IntraParams(delta_px=0.0), "delta_px=0 (no intra-pixel area)")
-    report(data, IntraParams(delta_px=0.5 - 1e-9), "delta_px=0.5")
+    report(data, IntraParams(delta_px=0.5), "delta_px=0.5")
     report(data, IntraParams(refit_intercept=False), "refit through the current event")
     report(data, IntraParams(fallback_all_points=False), "no fallback to all points")
     print("== inlier threshold (abs us, rel) ==")

@@ -107,7 +107,8 @@ class IntraParams:
     window_size : int
         N of the N x N SAE window, odd, >= 3 (paper: 5).
     delta_px : float
-        Half-size of the intra-pixel area, >= 0 (paper: 0.25; 0 = plain RANSAC).
+        Half-size of the intra-pixel area, in [0, 0.5] (paper: 0.25; 0 = plain
+        RANSAC; 0.5 = the whole pixel).
     inlier_threshold_us : float
         Absolute part of the inlier threshold on the intra-pixel residual, > 0.
     inlier_threshold_rel : float
@@ -154,8 +155,8 @@ class IntraParams:
         if self.window_size < 3 or self.window_size % 2 == 0:
             raise ValueError(f"{own}.window_size must be odd and >= 3, got {self.window_size}")
         check_positive(own, "delta_px", self.delta_px, allow_zero=True)
-        if self.delta_px >= 0.5:
-            raise ValueError(f"{own}.delta_px must be < 0.5 (half a pixel), got {self.delta_px}")
+        if self.delta_px > 0.5:
+            raise ValueError(f"{own}.delta_px must be <= 0.5 (0.5 = the whole pixel), got {self.delta_px}")
         check_positive(own, "inlier_threshold_us", self.inlier_threshold_us)
         check_positive(own, "inlier_threshold_rel", self.inlier_threshold_rel, allow_zero=True)
         check_positive(own, "max_trials", self.max_trials, integer=True)

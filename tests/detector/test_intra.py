@@ -328,7 +328,7 @@ def test_never_fired_is_not_zero_time():
         (dict(window_size=1), ValueError, "window_size"),
         (dict(window_size=5.5), TypeError, "window_size"),
         (dict(delta_px=-0.1), ValueError, "delta_px"),
-        (dict(delta_px=0.5), ValueError, "delta_px"),
+        (dict(delta_px=0.51), ValueError, "delta_px"),
         (dict(inlier_threshold_us=0), ValueError, "inlier_threshold_us"),
         (dict(inlier_threshold_us=float("nan")), ValueError, "inlier_threshold_us"),
         (dict(inlier_threshold_rel=-1), ValueError, "inlier_threshold_rel"),
