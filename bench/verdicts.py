@@ -126,6 +126,11 @@ def cdm_verdicts(cdm: dict, diagnostics: dict | None = None) -> list[dict]:
             ev = "|median fast - median slow|: " + ev
             if worse:
                 ev += f". At least as consistent as the proposed method: {', '.join(worse)}"
+            if "mueggler_t0" in gap and "mueggler" in gap and gap["mueggler_t0"] < gap["proposed"] < gap["mueggler"]:
+                ev += (f". Caveat: Mueggler's inconsistency is its absolute-time quirk (the slow section is the "
+                       f"start of the recording): with its time origin 1 s earlier (diagnostic) its gap is "
+                       f"{_fmt(gap['mueggler_t0'])} (slow {_fmt(med['mueggler_t0']['slow'])}, fast "
+                       f"{_fmt(med['mueggler_t0']['fast'])}), smaller than the proposed method's")
             if "acc_count" in gap and not gap["proposed"] < gap["acc_count"]:
                 ev += (". Note: fixed-count accumulation is more consistent still (by construction its maps "
                        "have the same number of pixels at any speed)")

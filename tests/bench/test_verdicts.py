@@ -62,3 +62,11 @@ def test_lifetime_and_real_claims():
     v = real_verdicts(real)
     assert v[0]["status"] == "fails" and "acc_30ms" in v[0]["evidence"]
     assert len(all_verdicts({"real": real, "lifetime": lt})) >= 4
+
+
+def test_consistency_verdict_flags_the_mueggler_time_origin_quirk():
+    cdm = _cdm(80, 70, {"mueggler": (40, 85), "acc_1ms": (20, 40), "acc_30ms": (60, 30), "mueggler_t0": (86, 87)})
+    v = cdm_verdicts(cdm)
+    consistent = [x for x in v if "consistent" in x["claim"]][0]
+    assert consistent["status"] == "holds"
+    assert "absolute-time quirk" in consistent["evidence"]
