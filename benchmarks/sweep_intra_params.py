@@ -96,6 +96,22 @@ def main():
         report(data, IntraParams(max_trials=trials, stop_probability=stop), f"max_trials={trials} stop_probability={stop}")
     for mi in (3, 4, 5, 6, 8, 10):
         report(data, IntraParams(min_inliers=mi, min_points=min(mi, 5)), f"min_inliers={mi} min_points={min(mi, 5)}")
+    print("== accuracy of the defaults per speed (all angles; median |relative error|, share with estimate) ==")
+    conditions = {"noise-free": dict(), **NOISE}
+    print(f"{'speed px/s':>10s} " + " ".join(f"{c:>22s}" for c in conditions))
+    for i_v, v in enumerate(SPEEDS):
+        cells = []
+        for noise in conditions.values():
+            errs, valid, n = [], 0, 0
+            for i_a, a in enumerate(ANGLES):
+                ev, tau = edge_events(SIZE.width, SIZE.height, v, a, rng=5000 + 10 * i_v + i_a, **noise)
+                inner = (ev["x"] >= 2) & (ev["x"] < SIZE.width - 2) & (ev["y"] >= 2) & (ev["y"] < SIZE.height - 2)
+                r = estimate_lifetimes(ev, SIZE, base)[inner]
+                errs.append(np.abs(r["lifetime_us"][r["valid"]] / tau - 1))
+                valid += r["valid"].sum()
+                n += inner.sum()
+            cells.append(f"{np.median(np.concatenate(errs)) * 100:8.2f} % {valid / n * 100:6.1f} %")
+        print(f"{v:>10d} " + " ".join(f"{c:>22s}" for c in cells))
     print(f"sweep took {time.perf_counter() - t0:.0f} s")
 
 

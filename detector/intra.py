@@ -75,6 +75,12 @@ within 10 % of the truth, mean of both conditions; measured 2026-11-23):
     0.719 / 0.720), 6 / 8 lose estimates (0.715 / 0.667); 5 asks for two
     votes beyond the sample at no cost.
 
+Accuracy of the defaults on the same edges (median relative lifetime error,
+share of events with an estimate, per speed over 6 angles): noise-free 0.00 %
+(0.05 % at 5000 px/s, from 1-us timestamp rounding) and 100 %; "mild"
+5.1-5.3 % and 99.9-100 %; "severe" 5.9-6.0 % and 98.1-98.6 %, flat across
+20-5000 px/s because all noise is in units of the lifetime.
+
 References
 ----------
 .. [1] S. Lee, H. Kim, H. J. Kim, "Edge Detection for Event Cameras using
