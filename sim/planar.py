@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._coverage import _render_disk, _render_polygon, _render_stripes
+from ._coverage import _render_disk, _render_polygons, _render_stripes
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 
@@ -103,14 +103,14 @@ class ShapesRenderer:
         self.circles = [s for s in shapes if isinstance(s, Circle)]
         if len(self.polygons) + len(self.circles) != len(shapes):
             raise TypeError("ShapesRenderer: shapes must be Polygon or Circle instances")
-        nmax = max([p.vertices_px.shape[0] for p in self.polygons], default=3)
-        self._scratch = [np.empty(6 * nmax + 16) for _ in range(4)]
+        self._acc = np.zeros(self.width * self.height)  # scratch of the polygon rasteriser
         # flattened geometry for the truth kernel
         verts = [p.vertices_px for p in self.polygons]
         self._px = np.ascontiguousarray(np.concatenate([v[:, 0] for v in verts]) if verts else np.empty(0))
         self._py = np.ascontiguousarray(np.concatenate([v[:, 1] for v in verts]) if verts else np.empty(0))
         self._pstart = np.concatenate([[0], np.cumsum([v.shape[0] for v in verts])]).astype(np.int64)
         self._porient = np.array([p.orientation for p in self.polygons], dtype=np.float64)
+        self._pvalue = np.array([p.intensity for p in self.polygons], dtype=np.float64)
         self._pflip = np.array([1.0 if p.intensity < self.background else -1.0 for p in self.polygons])
         self._cx = np.array([c.center_px[0] for c in self.circles], dtype=np.float64)
         self._cy = np.array([c.center_px[1] for c in self.circles], dtype=np.float64)
@@ -121,15 +121,15 @@ class ShapesRenderer:
         w, h = self.width, self.height
         out = np.full(w * h, self.background)
         edge = np.zeros(w * h, dtype=np.bool_)
-        ax, ay, bx, by = self._scratch
-        for p in self.polygons:
-            x, y = self.motion.to_image(p.vertices_px[:, 0], p.vertices_px[:, 1], t_s)
-            _render_polygon(out, edge, w, h, np.ascontiguousarray(x), np.ascontiguousarray(y),
-                            p.intensity, self.background, EDGE_AREA_TOL, ax, ay, bx, by)
-        for c in self.circles:
-            x, y = self.motion.to_image(c.center_px[0], c.center_px[1], t_s)
-            _render_disk(out, edge, w, h, float(x), float(y), c.radius_px, c.intensity, self.background,
-                         EDGE_AREA_TOL)
+        if self.polygons:
+            x, y = self.motion.to_image(self._px, self._py, t_s)
+            _render_polygons(out, edge, self._acc, w, h, np.ascontiguousarray(x), np.ascontiguousarray(y),
+                             self._pstart, self._pvalue, self.background, EDGE_AREA_TOL)
+        if self.circles:
+            cx, cy = self.motion.to_image(self._cx, self._cy, t_s)
+            for k, c in enumerate(self.circles):
+                _render_disk(out, edge, w, h, float(cx[k]), float(cy[k]), c.radius_px, c.intensity,
+                             self.background, EDGE_AREA_TOL)
         np.clip(out, 0.0, 1.0, out=out)
         return out.reshape(h, w), edge.reshape(h, w)
 

@@ -110,3 +110,18 @@ def test_public_coverage_functions_validate():
         coverage.disk_box_area(0, 0, -1, (0, 0, 1, 1))
     with pytest.raises(ValueError, match="period_px"):
         coverage.stripe_dark_fraction(0, 0, 1, 0, 0, 0, 0.5)
+
+
+def test_polygons_crossing_the_image_border_match_reference(ref):
+    # the row rasteriser folds area left of the image into column 0 and drops what lies right of it
+    rng = np.random.default_rng(7)
+    for trial in range(6):
+        vx, vy = _random_polygon(rng, int(rng.integers(3, 11)), rng.uniform(-3, 15), rng.uniform(-3, 12), 7.0)
+        r = ShapesRenderer(12, 9, [Polygon(np.stack([vx, vy], 1), 0.0)], PlanarMotion(), background=1.0)
+        img = r.intensity(0.0)
+        edges = r.edges(0.0)
+        for yy in range(9):
+            for xx in range(12):
+                want = ref.ref_polygon_box_area(vx, vy, xx - 0.5, yy - 0.5, xx + 0.5, yy + 0.5)
+                assert 1.0 - img[yy, xx] == pytest.approx(want, abs=1e-9), (trial, xx, yy)
+                assert edges[yy, xx] == (1e-9 < want < 1 - 1e-9) or min(want, 1 - want) < 1e-8
