@@ -212,12 +212,7 @@ def _fit_batch(windows: np.ndarray, use_intra: bool, delta: float, seed: int):
     """The detector's 2-means + RANSAC on a stack of windows (default parameters but delta)."""
     from evedge.detector.intra import IntraParams, fit_windows
 
-    # The detector requires delta < 0.5 (the paper's pixel area is an open
-    # square); the paper's delta = 0.5 is run as 0.4999, the same up to 1e-4 px.
-    return fit_windows(windows, IntraParams(delta_px=min(delta, _DELTA_MAX_PX)), use_intra=use_intra, seed=seed)
-
-
-_DELTA_MAX_PX = 0.4999
+    return fit_windows(windows, IntraParams(delta_px=delta), use_intra=use_intra, seed=seed)
 
 
 def _detector_defaults():
@@ -361,4 +356,25 @@ def _plot(out_dir: Path, results: dict, params: RansacStudyParams) -> list[Path]
         axes[0].legend(fontsize=7)
         fig.suptitle(f"RANSAC study, {kind} noise ({params.repetitions} windows per point)")
         paths.append(save_figure(fig, out_dir / f"ransac_{kind}.png"))
+
+    # The paper's second view: the metrics against delta (mean over the noisy levels).
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for kind, style in zip(NOISE_KINDS, ("-", "--")):
+        rows = sorted((r["delta_px"], r) for r in results[kind].values() if r["use_intra"])
+        lv = np.asarray(rows[0][1]["noise_px"]) if rows else np.zeros(0)
+        noisy = lv > 0
+        if not noisy.any():
+            continue
+        d = [x for x, _ in rows]
+        f = [np.nanmean(np.asarray(r["f_measure"], float)[noisy]) for _, r in rows]
+        e = [np.nanmean(np.asarray(r["lifetime_rel_error_mean"], float)[noisy]) for _, r in rows]
+        axes[0].plot(d, f, style, marker="o", label=f"{kind} noise")
+        axes[1].plot(d, e, style, marker="o", label=f"{kind} noise")
+    axes[0].set_xlabel("intra-pixel half-size delta (px)")
+    axes[0].set_ylabel("F-measure (mean over noise > 0)")
+    axes[1].set_xlabel("intra-pixel half-size delta (px)")
+    axes[1].set_ylabel("rel. lifetime error (mean over noise > 0)")
+    axes[0].legend(fontsize=8)
+    fig.suptitle("RANSAC study: effect of delta")
+    paths.append(save_figure(fig, out_dir / "ransac_vs_delta.png"))
     return paths

@@ -231,14 +231,16 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
         for m, v in table[ref].items():
             ax.plot(np.asarray(times) / 1e6, v, marker=".", ms=3, lw=1, color=METHOD_COLOURS.get(m),
                     label=METHOD_LABELS[m])
-        for name, (a, b) in sections.items():
+        for k, (name, (a, b)) in enumerate(sections.items()):
             if name != "all":
-                ax.axvline(a / 1e6, color="k", lw=0.5, ls=":")
+                ax.axvspan(a / 1e6, b / 1e6, color=("0.85", "0.7")[k % 2], alpha=0.35, lw=0)
+                if ax is axes[0, 0]:
+                    ax.text((a + b) / 2e6, 2, f"{name} section", ha="center", va="bottom", fontsize=8)
         ax.set_ylabel(f"CDM vs {ref}", fontsize=8)
         ax.set_ylim(0, 100)
     axes[-1, 0].set_xlabel("time (s)")
     axes[0, 0].legend(fontsize=7, ncol=3)
-    fig.suptitle(f"{scene}: similarity over time (sections: {', '.join(sections)})")
+    fig.suptitle(f"{scene}: similarity over time (shaded: {', '.join(sections)} sections)")
     paths.append(save_figure(fig, out_dir / f"similarity_{scene}_over_time.png"))
 
     names = [n for n in sections]

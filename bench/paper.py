@@ -91,8 +91,7 @@ NOTES = [
     "the proposed edge image keeps a pixel while t_e <= T < t_e + tau_e.",
     "Similarity over time: frames earlier than 30 ms after the first event are skipped (no method is judged "
     "before the longest window could fill).",
-    "RANSAC study: the paper's delta = 0.5 runs as 0.4999 (the detector requires delta < 0.5, the pixel area "
-    "being an open square). True inliers: timestamps within truth_tol_px x tau of the true plane; the "
+    "RANSAC study: the detector's default parameters except delta (and use_intra). True inliers: timestamps within truth_tol_px x tau of the true plane; the "
     "F-measure at other tolerances is in results.json (truth_tolerance_sensitivity), since the verdict on "
     "F-measure depends on that definition.",
     "Mueggler et al.'s plane is fitted in absolute time (their code's quirk, reproduced): its time tolerance "
