@@ -82,7 +82,8 @@ class EventBuffer:
     -----
     :meth:`process` returns the events whose fate is known, kept ones only, in
     time order; in the buffered form an event is held until it is supported or
-    until an event later than ``t + tau_min_us`` arrives. :meth:`flush` releases
+    until an event later than ``t + tau_min_us`` arrives (or :meth:`advance_to`
+    says the stream has passed that time). :meth:`flush` releases
     the rest at the end of the stream. The concatenation of all outputs equals
     ``events[filter_events(events, ...)]`` whatever the chunking.
     """
@@ -124,11 +125,30 @@ class EventBuffer:
         _buffer_scan(x, y, t, p, prev, supported, n_old, self._base_g, self._last_t, self._head_g,
                      self.sensor_size.width, self.sensor_size.height, tau, causal)
         self._last_time = int(t[-1])
-        r = _n_decided(t, supported, self._last_time, tau, causal)
-        out = allev[:r][supported[:r]]
-        self._pending = allev[r:]
-        self._prev = prev[r:]
-        self._supported = supported[r:]
+        self._pending, self._prev, self._supported = allev, prev, supported
+        return self._release(_n_decided(t, supported, self._last_time, tau, causal))
+
+    def advance_to(self, t_us: int) -> np.ndarray:
+        """Declare that no event earlier than ``t_us`` will come; return the kept events now decided.
+
+        Without it an unsupported event waits for the next event later than its
+        ``t + tau_min_us``; a caller with a clock can bound the latency in wall time.
+        Later chunks must not start before ``t_us``.
+        """
+        if isinstance(t_us, bool) or not isinstance(t_us, (int, np.integer)):
+            raise TypeError(f"t_us must be an integer (microseconds), got {t_us!r}")
+        if self._last_time is not None and t_us < self._last_time:
+            raise ValueError(f"t_us={t_us} is before the newest processed event (t={self._last_time} us)")
+        self._last_time = int(t_us)
+        t = np.ascontiguousarray(self._pending["t"], dtype=np.int64)
+        r = _n_decided(t, self._supported, self._last_time, self.params.tau_min_us, self.params.mode == "causal")
+        return self._release(r)
+
+    def _release(self, r: int) -> np.ndarray:
+        out = self._pending[:r][self._supported[:r]]
+        self._pending = self._pending[r:]
+        self._prev = self._prev[r:]
+        self._supported = self._supported[r:]
         self._base_g += r
         return out
 

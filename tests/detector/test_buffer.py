@@ -103,6 +103,31 @@ def test_release_latency_is_bounded_by_tau():
     assert buf.flush().size == 0
 
 
+def test_advance_to_bounds_latency_without_new_events():
+    buf = EventBuffer(S, BufferParams(tau_min_us=1_000))
+    ev = make_events([3, 4, 9], [3, 3, 8], [0, 500, 600], [True, True, True])
+    assert buf.process(ev)["t"].tolist() == [0, 500]  # supported: released at once
+    assert buf.n_pending == 1
+    assert buf.advance_to(1_600).size == 0 and buf.n_pending == 1  # t + tau = 1600 not yet passed
+    assert buf.advance_to(1_601).size == 0 and buf.n_pending == 0  # dropped
+    with pytest.raises(ValueError, match="before the newest"):
+        buf.advance_to(1_000)
+    with pytest.raises(ValueError, match="previous chunk"):
+        buf.process(make_events([1], [1], [1_500], [True]))
+    # chunked + advance_to == one-shot
+    rnd = np.random.default_rng(0)
+    t = np.sort(rnd.integers(0, 50_000, 400))
+    evs = make_events(rnd.integers(0, S.width, 400), rnd.integers(0, S.height, 400), t, rnd.random(400) < 0.5)
+    want = evs[filter_events(evs, S, BufferParams(tau_min_us=1_000))]
+    buf.reset()
+    out = []
+    for chunk in np.array_split(evs, 9):
+        out.append(buf.process(chunk))
+        out.append(buf.advance_to(int(chunk["t"][-1]) + 1))
+    out.append(buf.flush())
+    np.testing.assert_array_equal(np.concatenate(out), want)
+
+
 def test_reset_forgets():
     buf = EventBuffer(S)
     buf.process(make_events([3], [3], [0], [True]))
