@@ -143,6 +143,12 @@ class Detector:
             return self._run(events)
         return self._run(self.buffer.process(events))
 
+    def advance_to(self, t_us: int):
+        """No event before ``t_us`` will come: release what the buffer has decided; ``(events, lifetimes)``."""
+        if not self.use_buffer:
+            return self._run(np.empty(0, dtype=EVENT_DTYPE))
+        return self._run(self.buffer.advance_to(t_us))
+
     def flush(self):
         """End of stream: release what the buffer still holds; ``(events, lifetimes)``."""
         if not self.use_buffer:

@@ -37,7 +37,11 @@ def test_streaming_detector_equals_one_shot(edge_events, random_events):
     bp = BufferParams(tau_min_us=3_000)
     res = detect(ev, size, buffer_params=bp)
     det = Detector(size, buffer_params=bp)
-    outs = [det.process(c) for c in np.array_split(ev, 11)] + [det.flush()]
+    outs = []
+    for c in np.array_split(ev, 11):
+        outs.append(det.process(c))
+        outs.append(det.advance_to(int(c["t"][-1])))
+    outs.append(det.flush())
     got_ev = np.concatenate([o[0] for o in outs])
     got_lt = np.concatenate([o[1] for o in outs])
     np.testing.assert_array_equal(got_ev, ev[res.kept])
