@@ -197,6 +197,10 @@ def lifetime_verdicts(lifetime: dict) -> list[dict]:
             fw[m] = float(np.mean([p["fwhm_log10"] for p in peaks])) if peaks else float("nan")
         parts = [f"mean peak FWHM (decades): proposed {_fmt(fw['proposed'], 3)}, "
                  f"Mueggler {_fmt(fw['mueggler'], 3)}"]
+        for m in ("proposed", "mueggler") + (("truth",) if "truth" in per else ()):
+            peaks = per[m].get("peaks") or []
+            parts.append(f"{m}: {len(peaks)} peak(s) at " + (", ".join(f"{p['mode'] / 1e3:.2f} ms" for p in peaks)
+                                                             or "none"))
         holds = bool(fw["proposed"] < fw["mueggler"])
         err = {m: per[m].get("median_rel_error") for m in ("proposed", "mueggler")}
         if all(v is not None and np.isfinite(v) for v in err.values()):
@@ -220,6 +224,9 @@ def real_verdicts(real: dict) -> list[dict]:
             med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method if m not in _DIAGNOSTIC}
             best = max(med, key=lambda m: -np.inf if not np.isfinite(med[m]) else med[m])
             ev = ", ".join(f"{m} {_fmt(v)}" for m, v in med.items())
+            diag = [f"{m} {_fmt(per_method[m]['median'].get(ref, np.nan))}" for m in per_method if m in _DIAGNOSTIC]
+            if diag:
+                ev += "; diagnostic (not ranked): " + ", ".join(diag)
             out.append(_verdict(best == "proposed", f"[{rec}, vs {ref}] Proposed has the highest median CDM "
                                                     f"on the real frames", f"median CDM: {ev}; best: {best}",
                                 {"medians": med}))

@@ -53,8 +53,8 @@ def test_intra_claims():
 
 
 def test_lifetime_and_real_claims():
-    lt = {"d": {"proposed": {"peaks": [{"fwhm_log10": 0.1}], "median_rel_error": 0.05},
-                "mueggler": {"peaks": [{"fwhm_log10": 0.2}], "median_rel_error": 0.1}}}
+    lt = {"d": {"proposed": {"peaks": [{"fwhm_log10": 0.1, "mode": 1000.0}], "median_rel_error": 0.05},
+                "mueggler": {"peaks": [{"fwhm_log10": 0.2, "mode": 1100.0}], "median_rel_error": 0.1}}}
     assert lifetime_verdicts(lt)[0]["status"] == "holds"
     lt["d"]["proposed"]["median_rel_error"] = 0.5
     assert lifetime_verdicts(lt)[0]["status"] == "fails"
