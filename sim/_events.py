@@ -48,12 +48,11 @@ def _max_log_change(i0, i1, eps):
     for i in range(i0.shape[0]):
         a = i0[i] + eps
         b = i1[i] + eps
-        if a > b:
-            q = a / b
-        else:
-            q = b / a
-        if q > r:
-            r = q
+        # compare by multiplication, divide only when the maximum grows
+        if a > r * b:
+            r = a / b
+        elif b > r * a:
+            r = b / a
     return math.log(r)
 
 
@@ -75,7 +74,7 @@ def _max_log_gradient(img, width, height, eps):
 
 @njit(cache=True)
 def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
-             seq, jitter_s, jitter_seed, fill, out_pix, out_t_true, out_t, out_p):
+             seq, jitter_s, jitter_seed, fill, cand, n_cand, out_pix, out_t_true, out_t, out_p):
     """Events of every pixel between samples ``(t0, i0)`` and ``(t1, i1)`` (linear intensity).
 
     The log intensity ``L = log(I + eps)`` is interpolated linearly in time
@@ -88,20 +87,28 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
 
     ``e_hi = exp(lref + cpos)`` and ``e_lo = exp(lref - cneg)`` let most pixels
     be skipped without a logarithm. With ``fill`` False nothing is written or
-    mutated (first pass of two-pass sizing).
+    mutated except the scratch ``cand``, which receives the indices of the
+    pixels passing the pre-test; the fill pass (``fill`` True) then visits only
+    ``cand[:n_cand]`` (two-pass sizing: count, then fill).
 
-    Returns ``(n_events, n_moved)``: the events emitted and the pixels whose
-    reference level moved (non-zero ``n_moved`` with ``n_events == 0`` when all
-    crossings fell in refractory periods: the fill pass must still run).
+    Returns ``(n_events, n_moved, n_cand)``: the events emitted, the pixels
+    whose reference level moved (non-zero ``n_moved`` with ``n_events == 0``
+    when all crossings fell in refractory periods: the fill pass must still
+    run) and the candidates written to ``cand`` (count pass only).
     """
     n = 0
     n_moved = 0
+    m = 0
     span = t1 - t0
-    for i in range(i0.shape[0]):
+    for j in range(n_cand if fill else i0.shape[0]):
+        i = cand[j] if fill else j
         a = i1[i] + eps
         # conservative pre-test; the decision itself is made on logarithms below
         if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
             continue
+        if not fill:
+            cand[m] = i
+            m += 1
         l1 = math.log(a)
         l0 = math.log(i0[i] + eps)
         lr = lref[i]
@@ -146,7 +153,7 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
             e_lo[i] = math.exp(lr - cn)
             last_t[i] = last
             seq[i] = k
-    return n, n_moved
+    return n, n_moved, m
 
 
 @njit(cache=True)

@@ -42,6 +42,9 @@ from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
 from evedge.events import EVENT_DTYPE
 
+#: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
+_NOISE_BLOCK_S = 0.01
+
 
 @dataclass(frozen=True)
 class ConverterParams:
@@ -185,6 +188,8 @@ class EventConverter:
         self.seq = np.zeros(npix, dtype=np.int64)
         self.noise_next = np.empty(npix)
         self.noise_count = np.zeros(npix, dtype=np.int64)
+        self._noise_until = 0.0
+        self._cand = np.empty(npix, dtype=np.int64)
         if p.noise_rate_hz > 0:
             _noise_first_arrivals(p.noise_rate_hz, self._noise_time_seed, self.noise_next)
         self._dt = min(1.0 / p.min_rate_hz, 1e-4)
@@ -244,20 +249,23 @@ class EventConverter:
         empty_i = np.empty(0, dtype=np.int64)
         empty_f = np.empty(0)
         empty_b = np.empty(0, dtype=np.bool_)
-        n, moved = _convert(*args, False, empty_i, empty_f, empty_f, empty_b)
+        n, moved, n_cand = _convert(*args, False, self._cand, 0, empty_i, empty_f, empty_f, empty_b)
         if moved:
             pix = np.empty(n, dtype=np.int64)
             t_true = np.empty(n)
             t_emit = np.empty(n)
             pol = np.empty(n, dtype=np.bool_)
-            _convert(*args, True, pix, t_true, t_emit, pol)
+            _convert(*args, True, self._cand, n_cand, pix, t_true, t_emit, pol)
         if n:
             truth = self._truth(pix, t_true, t0, t1, i0, i1)
             self._pending.append(dict(pix=pix, t=t_emit, p=pol, noise=np.zeros(n, dtype=np.bool_), truth=truth))
         else:
             self._flow = None
-        if p.noise_rate_hz > 0:
-            nargs = (t1, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
+        if p.noise_rate_hz > 0 and t1 > self._noise_until:
+            # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
+            # block grid does not depend on the samples, so neither does the noise)
+            self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
+            nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
                      self.noise_count)
             m = _noise(*nargs, False, empty_i, empty_f, empty_b)
             if m:

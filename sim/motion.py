@@ -97,8 +97,8 @@ class PlanarMotion:
 
     def max_speed_px_s(self, t0: float, t1: float, width: int, height: int) -> float:
         """Upper bound of the image speed over the sensor during ``[t0, t1]`` (``0 <= t0 <= t1``)."""
-        ends = (t0, t1)
-        rate = max(abs(self._phase_rate(t)) for t in ends)
+        ends = (float(t0), float(t1))
+        rate = 2.0 * math.pi * max(abs(self.frequency_hz + self.chirp_hz_s * t) for t in ends)
         lin = max(math.hypot(self.velocity_px_s[0] + self.acceleration_px_s2[0] * t,
                              self.velocity_px_s[1] + self.acceleration_px_s2[1] * t) for t in ends)
         trans = lin + math.hypot(*self.amplitude_px) * rate

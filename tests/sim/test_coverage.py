@@ -125,3 +125,49 @@ def test_polygons_crossing_the_image_border_match_reference(ref):
                 want = ref.ref_polygon_box_area(vx, vy, xx - 0.5, yy - 0.5, xx + 0.5, yy + 0.5)
                 assert 1.0 - img[yy, xx] == pytest.approx(want, abs=1e-9), (trial, xx, yy)
                 assert edges[yy, xx] == (1e-9 < want < 1 - 1e-9) or min(want, 1 - want) < 1e-8
+
+
+def test_rendered_disks_match_reference(ref):
+    rng = np.random.default_rng(9)
+    for trial in range(3):
+        cx, cy, r = rng.uniform(-2, 12), rng.uniform(-2, 10), rng.uniform(1.0, 6.0)
+        img = ShapesRenderer(10, 8, [Circle((cx, cy), r, 0.0)], PlanarMotion(), background=1.0).intensity(0.0)
+        for yy in range(8):
+            for xx in range(10):
+                want = ref.ref_disk_box_area(cx, cy, r, xx - 0.5, yy - 0.5, xx + 0.5, yy + 0.5)
+                assert 1.0 - img[yy, xx] == pytest.approx(want, abs=1e-9), (trial, xx, yy)
+
+
+def test_nearest_normal_kernel_matches_reference():
+    from evedge.sim._nearest import _nearest_outward_normal
+
+    rng = np.random.default_rng(11)
+    sq = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]])  # orientation +1 (shoelace > 0)
+    tri = np.array([[10.0, 0.0], [12.0, 5.0], [8.0, 5.0]])
+    px = np.concatenate([sq[:, 0], tri[:, 0]])
+    py = np.concatenate([sq[:, 1], tri[:, 1]])
+    starts = np.array([0, 4, 7])
+    orient = np.array([1.0, 1.0])
+    flip = np.array([1.0, -1.0])
+    q = rng.uniform(-3, 15, (200, 2))
+    nx, ny = np.empty(200), np.empty(200)
+    _nearest_outward_normal(q[:, 0].copy(), q[:, 1].copy(), px, py, starts, orient, flip,
+                            np.array([5.0]), np.array([12.0]), np.array([2.0]), np.array([1.0]), nx, ny)
+
+    def seg_dist(p, a, b):
+        t = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0, 1)
+        return np.linalg.norm(a + t * (b - a) - p)
+
+    for i, p in enumerate(q):
+        best = (np.inf, None)
+        for poly, f in ((sq, 1.0), (tri, -1.0)):
+            for k in range(len(poly)):
+                a, b = poly[k - 1], poly[k]
+                d = seg_dist(p, a, b)
+                if d < best[0]:
+                    e = (b - a) / np.linalg.norm(b - a)
+                    best = (d, f * np.array([e[1], -e[0]]))
+        dc = np.linalg.norm(p - [5.0, 12.0])
+        if abs(dc - 2.0) < best[0]:
+            best = (abs(dc - 2.0), (p - [5.0, 12.0]) / dc)
+        np.testing.assert_allclose([nx[i], ny[i]], best[1], atol=1e-12)

@@ -80,11 +80,13 @@ def test_convert_kernel_matches_reference(ref, with_refractory, jitter_s):
     args = lambda: (i0, i1, t0, t1, eps, state[0], state[1], state[2], cpos, cneg, state[3], refr, state[4],  # noqa: E731
                     jitter_s, jseed)
     e = np.empty(0)
-    count, moved = _convert(*args(), False, np.empty(0, np.int64), e, e, np.empty(0, bool))
+    cand = np.empty(n, np.int64)
+    count, moved, n_cand = _convert(*args(), False, cand, 0, np.empty(0, np.int64), e, e, np.empty(0, bool))
     assert count == len(want) > 50
     assert moved == np.count_nonzero(np.asarray(wl) != lref)
+    assert moved <= n_cand < n
     pix, tt, te, pol = np.empty(count, np.int64), np.empty(count), np.empty(count), np.empty(count, bool)
-    assert _convert(*args(), True, pix, tt, te, pol) == (count, moved)
+    assert _convert(*args(), True, cand, n_cand, pix, tt, te, pol) == (count, moved, 0)
     np.testing.assert_array_equal(pix, [w[0] for w in want])
     np.testing.assert_allclose(tt, [w[1] for w in want], rtol=0, atol=1e-12)
     np.testing.assert_allclose(te, [w[2] for w in want], rtol=0, atol=1e-12)
@@ -175,3 +177,20 @@ def test_halving_lambda_barely_changes_events(stripes_dict):
     assert same >= 0.99 * pairs.shape[0]
     diffs = np.concatenate(diffs)
     assert np.percentile(diffs, 95) <= 5 and diffs.mean() <= 6.0 and diffs.max() <= 300
+
+
+def test_sampling_kernels_match_numpy():
+    from evedge.sim._events import _max_log_change, _max_log_gradient
+
+    rng = np.random.default_rng(8)
+    for _ in range(5):
+        a, b = rng.random(300), rng.random(300)
+        want = np.abs(np.log(a + 1e-3) - np.log(b + 1e-3)).max()
+        assert _max_log_change(a, b, 1e-3) == pytest.approx(want, rel=1e-13)
+        img = rng.random((12, 25))
+        lg = np.log(img + 1e-3)
+        gx = np.zeros_like(lg)
+        gy = np.zeros_like(lg)
+        gx[:, :-1] = np.diff(lg, axis=1)
+        gy[:-1, :] = np.diff(lg, axis=0)
+        assert _max_log_gradient(img.ravel(), 25, 12, 1e-3) == pytest.approx(np.hypot(gx, gy).max(), rel=1e-13)

@@ -1,0 +1,66 @@
+"""Simulator speed: simulated seconds per wall-clock second and events per wall-clock second.
+
+Run: ``.venv/bin/python benchmarks/bench_sim.py [--quick]``. Scenes: ``stripes`` (put
+on a 240x180 sensor), ``shapes_translation`` (240x180; also its slow and fast
+sections), both analytic, and ``boxes_3d`` (pyrender). Frames are off (pure
+event generation); each scene is run once briefly first so numba compilation
+and GL start-up are not counted. One process, numba on one thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import os
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+from evedge.sim import parse_scene, simulate  # noqa: E402
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+
+def _scene(name: str, sensor: str | None = None):
+    data = tomllib.loads((SCENES / f"{name}.toml").read_text())
+    if sensor:
+        data = copy.deepcopy(data)
+        data["sensor"] = {"preset": sensor}
+    return parse_scene(data, source=f"{name}.toml")
+
+
+def _run(label: str, scene, duration_s: float, start_s: float = 0.0) -> None:
+    simulate(scene, duration_s=min(0.01, duration_s), frame_rate_hz=0, progress=False)  # warm-up
+    t0 = time.perf_counter()
+    rec = simulate(scene, duration_s=start_s + duration_s, frame_rate_hz=0, progress=False)
+    wall = time.perf_counter() - t0
+    ev = rec.events
+    n = int((ev["t"] >= start_s * 1e6).sum()) if start_s else ev.shape[0]
+    print(f"{label:44s} {scene.sensor.width}x{scene.sensor.height}  sim {start_s + duration_s:5.2f} s in "
+          f"{wall:6.2f} s wall: {(start_s + duration_s) / wall:6.3f} sim-s/s, "
+          f"{ev.shape[0] / wall / 1e6:6.3f} Mev/s ({ev.shape[0]:,} events, {rec.metadata['n_samples']} samples)",
+          flush=True)
+    del n
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true", help="shorter runs")
+    ap.add_argument("--no-3d", action="store_true", help="skip the pyrender scene")
+    args = ap.parse_args()
+    k = 0.25 if args.quick else 1.0
+    print(f"python {sys.version.split()[0]}, {os.cpu_count()} cpus, NUMBA_NUM_THREADS={os.environ['NUMBA_NUM_THREADS']}")
+    _run("stripes (analytic, 50 + 125 px/s)", _scene("stripes", "davis240"), 0.8 * k)
+    _run("stripes (analytic, dvs128 as shipped)", _scene("stripes"), 0.8 * k)
+    tr = _scene("shapes_translation")
+    _run("shapes_translation (analytic, full 2 s)", tr, 2.0 * k)
+    _run("shapes_translation slow section 0-0.6 s", tr, 0.6 * k)
+    if not args.no_3d:
+        _run("boxes_3d (pyrender, 240x180)", _scene("boxes_3d"), 0.5 * k)
+
+
+if __name__ == "__main__":
+    main()
