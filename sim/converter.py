@@ -139,6 +139,8 @@ class EventConverter:
     Notes
     -----
     Events are returned in time order (ties: pixel index, then exact time).
+    ``process(until_s)`` is the streaming form; :func:`evedge.sim.simulate`
+    the one-shot wrapper.
     ``process`` advances the samples until at least ``until_s``; the sample
     times never depend on ``until_s``, and only events that no later sample
     can precede are returned, so any chunking gives the same bytes.
@@ -329,7 +331,9 @@ class EventConverter:
         if np.any(keep):
             self._pending.append(dict(pix=pix[keep], t=t[keep], p=pol[keep], noise=noise[keep], truth=truth[keep]))
         pix, t, pol, noise, truth, t_us = pix[done], t[done], pol[done], noise[done], truth[done], t_us[done]
-        order = np.lexsort((noise, t, pix, t_us))
+        # time order; ties by pixel, then exact time (a signal and a noise event of one pixel never
+        # share an exact float time, so the order is total and independent of the chunking)
+        order = np.lexsort((t, t_us * (self.width * self.height) + pix))
         ev = np.empty(order.shape[0], dtype=EVENT_DTYPE)
         ev["x"] = pix[order] % self.width
         ev["y"] = pix[order] // self.width
