@@ -23,6 +23,8 @@ def bench() -> None:
 def _summary(results: dict, t0: float) -> None:
     for v in results.get("verdicts", []):
         click.echo(f"  [{v['status'].upper():11s}] {v['claim']}")
+    for name, why in results.get("skipped", {}).items():
+        click.echo(f"  skipped {name}: {why}", err=True)
     for name, err in results.get("errors", {}).items():
         click.echo(f"  experiment {name} FAILED: {err}", err=True)
     click.echo(f"wall time {time.perf_counter() - t0:.1f} s")

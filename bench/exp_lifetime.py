@@ -60,15 +60,17 @@ def _truth_lifetimes(rec) -> np.ndarray | None:
     return t
 
 
-def analyse_dataset(name: str, rec) -> dict:
+def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
     """Lifetimes of both methods on one recording, with peaks, images and errors."""
+    from tqdm.auto import tqdm
+
     truth = _truth_lifetimes(rec)
     out = {"info": {"n_events": int(rec.events.size), "sensor": [rec.sensor_size.width, rec.sensor_size.height],
                     "has_truth": truth is not None,
                     "source": str(rec.metadata.get("source", rec.metadata.get("scene", name)))},
            "methods": {}}
     arrays = {}
-    for m in LIFETIME_METHODS:
+    for m in tqdm(LIFETIME_METHODS, desc=f"lifetimes {name}", unit="method", disable=not progress, leave=False):
         run = proposed_lifetimes(rec.events, rec.sensor_size) if m == "proposed" else \
             mueggler_lifetimes(rec.events, rec.sensor_size)
         lt = run.lifetimes
@@ -134,13 +136,17 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
     """
     out_dir = Path(out_dir)
     recordings = dict(recordings or {})
-    results, figures, rows = {}, [], []
+    results, figures, rows, skipped = {}, [], [], {}
     for name in datasets:
         rec = recordings.get(name)
         if rec is None:
-            rec = _load(name, quick=quick, progress=progress, seed=seed, real_path=real_path,
-                        sim_duration_s=sim_duration_s)
-        res, arrays = analyse_dataset(name, rec)
+            try:
+                rec = _load(name, quick=quick, progress=progress, seed=seed, real_path=real_path,
+                            sim_duration_s=sim_duration_s)
+            except FileNotFoundError as exc:  # real data absent: run the rest, say so
+                skipped[name] = str(exc)
+                continue
+        res, arrays = analyse_dataset(name, rec, progress=progress)
         results[name] = res
         figures += _plot(out_dir, name, res, arrays)
         for m, r in res["methods"].items():
@@ -157,7 +163,7 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
     flat = {name: dict(res["methods"], **({"truth": res["truth"]} if "truth" in res else {}))
             for name, res in results.items()}
     out = {"lifetime": flat, "datasets": {name: res["info"] for name, res in results.items()},
-           "figures": [str(p) for p in figures]}
+           "skipped": skipped, "figures": [str(p) for p in figures]}
     write_json_atomic(out_dir / "lifetime.json", out)
     return out
 

@@ -153,7 +153,7 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    results: dict = {"fmeasure": {}, "lifetime": {}, "cdm": {}, "real": {}, "errors": {}}
+    results: dict = {"fmeasure": {}, "lifetime": {}, "cdm": {}, "real": {}, "errors": {}, "skipped": {}}
     figures: dict[str, list] = {}
     timing: dict[str, float] = {}
     params: dict = {"seed": seed, "quick": quick, "canny_settings": [s.as_dict() for s in CANNY_SETTINGS],
@@ -164,6 +164,10 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
         t0 = time.perf_counter()
         try:
             return fn()
+        except FileNotFoundError as exc:  # input data absent (e.g. no ../shared/realdata): skip, say so
+            results["skipped"][name] = str(exc)
+            print(f"evedge bench: experiment {name} skipped: {exc}", file=sys.stderr)
+            return None
         except Exception as exc:  # one failing experiment must not hide the others
             results["errors"][name] = f"{type(exc).__name__}: {exc}"
             print(f"evedge bench: experiment {name} failed: {exc}", file=sys.stderr)
@@ -196,6 +200,8 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
             if res:
                 results["lifetime"] = res["lifetime"]
                 results["lifetime_datasets"] = res["datasets"]
+                for ds, why in res["skipped"].items():
+                    results["skipped"][f"lifetime/{ds}"] = why
                 figures[name] = res["figures"]
         elif name == "similarity":
             params["similarity"] = {"scene": "shapes_translation", "sim_seed": seed,
@@ -261,7 +267,8 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
                       "versions": _versions(), "platform": platform.platform()}
     results["notes"] = NOTES
     results["figures"] = figures
-    notes = list(NOTES) + [f"Experiment {k} FAILED: {v}" for k, v in results["errors"].items()]
+    notes = (list(NOTES) + [f"Experiment {k} FAILED: {v}" for k, v in results["errors"].items()]
+             + [f"Skipped {k}: {v}" for k, v in results["skipped"].items()])
     write_json_atomic(out_dir / "results.json", results)
     report = write_report(out_dir / "report.html", results, figures=figures, notes=notes)
     results["report"] = str(report)

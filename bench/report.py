@@ -190,6 +190,9 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
          f" in {_num(run.get('wall_time_s'), 1)} s; mode: {'quick' if run.get('quick') else 'full'}. "
          f"Versions: {_e(', '.join(f'{k} {v}' for k, v in run.get('versions', {}).items()))}.</p>",
          "<h2>Do the paper's claims hold?</h2>", _verdict_section(results.get("verdicts", []))]
+    if results.get("skipped"):
+        h.insert(-2, "<div class='nc'><b>Skipped (input data absent):</b><ul>"
+                 + "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in results["skipped"].items()) + "</ul></div>")
     if results.get("errors"):
         h.insert(-2, "<div class='fails'><b>Experiments that failed in this run:</b><ul>"
                  + "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in results["errors"].items()) + "</ul></div>")

@@ -56,11 +56,21 @@ def test_report_is_one_self_contained_page(tiny_run):
     assert not re.search(r"src=['\"](?!data:)", text)
 
 
-def test_failing_experiment_is_reported_not_fatal(tmp_path):
-    res = run_paper(tmp_path, quick=True, progress=False, experiments=("real",),
+def test_missing_data_is_skipped_and_a_failure_reported(tmp_path, monkeypatch):
+    res = run_paper(tmp_path / "a", quick=True, progress=False, experiments=("real",),
                     real_path=tmp_path / "does_not_exist")
-    assert "real" in res["errors"]
-    assert "FAILED" in (tmp_path / "report.html").read_text() or "failed" in (tmp_path / "report.html").read_text()
+    assert "real" in res["skipped"] and not res["errors"]
+    assert "Skipped" in (tmp_path / "a" / "report.html").read_text()
+
+    import evedge.bench.exp_real as exp_real
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("simulated failure")
+
+    monkeypatch.setattr(exp_real, "run_real", boom)
+    res = run_paper(tmp_path / "b", quick=True, progress=False, experiments=("real",))
+    assert "real" in res["errors"] and "simulated failure" in res["errors"]["real"]
+    assert "failed" in (tmp_path / "b" / "report.html").read_text()
 
 
 def test_write_report_minimal(tmp_path):
