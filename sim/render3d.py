@@ -321,6 +321,74 @@ def _mark_segment(mask: np.ndarray, u0: float, v0: float, u1: float, v1: float) 
     mask[rows, cols] = True
 
 
+def _row_coverage(c, xa, xb, h):
+    """``h`` times the mean over the straight crossing from ``xa`` to ``xb`` of ``clamp(c - x, 0, 1)``.
+
+    For a pixel row cut by a piece of discontinuity running from ``u = xa`` to ``u = xb``
+    over a height ``h``, this is the area of the strip ``u < c`` (a column's right border)
+    lying right of the piece, integrated exactly (the crossing is linear in v).
+    """
+
+    def psi(z):  # antiderivative of clamp(z, 0, 1)
+        return np.where(z <= 0, 0.0, np.where(z >= 1, z - 0.5, 0.5 * z * z))
+
+    span = xb - xa
+    flat = np.abs(span) < 1e-12
+    safe = np.where(flat, 1.0, span)
+    sloped = (psi(c - xa) - psi(c - xb)) / safe
+    mid = np.clip(c - 0.5 * (xa + xb), 0.0, 1.0)
+    return h * np.where(flat, mid, sloped)
+
+
+def _merge_collinear(p, q, left, right, tol_px=1e-6):
+    """Merge pieces lying on one image line (each part of the line kept once).
+
+    Box edges project onto one line when the camera lies in their common plane (a face seen
+    edge-on, stacked boxes with aligned faces); the scanline accumulation must count each
+    discontinuity once. Sides are re-expressed for the common orientation of the line.
+    """
+    d = q - p
+    length = np.hypot(d[:, 0], d[:, 1])
+    unit = d / length[:, None]
+    flip = (unit[:, 0] < 0) | ((unit[:, 0] == 0) & (unit[:, 1] < 0))
+    unit[flip] *= -1
+    left, right = np.where(flip, right, left), np.where(flip, left, right)
+    offset = unit[:, 0] * p[:, 1] - unit[:, 1] * p[:, 0]  # n . p with n = (-d_v, d_u)
+    group = -np.ones(len(p), dtype=np.int64)
+    n_groups = 0
+    for k in range(len(p)):
+        if group[k] < 0:
+            same = (group < 0) & (np.abs(unit - unit[k]).max(axis=1) < 1e-9) & (np.abs(offset - offset[k]) < tol_px)
+            group[same] = n_groups
+            n_groups += 1
+    out_p, out_q, out_l, out_r = [], [], [], []
+    for g in range(n_groups):
+        members = np.flatnonzero(group == g)
+        k0 = members[0]
+        # positions along the common line of every member's ends
+        sp = p[members] @ unit[k0]
+        sq = q[members] @ unit[k0]
+        lo, hi = np.minimum(sp, sq), np.maximum(sp, sq)
+        if members.size == 1:
+            spans = [(lo[0], hi[0], k0)]
+        else:
+            ends = np.unique(np.concatenate([lo, hi]))
+            spans = []
+            for a, b in zip(ends[:-1], ends[1:]):
+                cover = np.flatnonzero((lo <= 0.5 * (a + b)) & (hi >= 0.5 * (a + b)))
+                if cover.size:
+                    spans.append((a, b, members[cover[0]]))
+        base = offset[k0] * np.array([-unit[k0, 1], unit[k0, 0]])  # foot of the line's normal
+        for a, b, k in spans:
+            out_p.append(base + a * unit[k0])
+            out_q.append(base + b * unit[k0])
+            out_l.append(left[k])
+            out_r.append(right[k])
+    if not out_p:
+        return p[:0], q[:0], left[:0], right[:0]
+    return np.array(out_p), np.array(out_q), np.array(out_l), np.array(out_r)
+
+
 def _clip_segment(p0: np.ndarray, p1: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     """Liang-Barsky: parameters (a, b) of the part of ``p0 + s (p1 - p0)`` inside ``[lo, hi]``,
     or None."""
@@ -357,27 +425,32 @@ class MeshRenderer:
         The camera motion.
     background : float, default 0.5
         Linear intensity in [0, 1] where no geometry is seen.
-    supersample : int, default 3
-        Odd factor ``s >= 1``: the scene is rasterised once per time stamp at ``s`` times the
-        resolution (``s**2`` samples per pixel, on a regular grid centred in the pixel).
+    supersample : int, default 1
+        Odd factor ``s >= 1``: the scene is rasterised at ``s`` times the resolution
+        (``s**2`` samples per pixel on a regular grid centred in the pixel). Only the
+        ``method="raster"`` variants of :meth:`intensity` and :meth:`edges` use more than the
+        centre sample; 3 is a good value for them.
 
     Notes
     -----
-    One rasterisation per time stamp (the last one is cached) draws every face in a unique
-    flat colour (its identifier; 0 = background) without multisampling, so every sample names
-    exactly one face. Everything else is derived from these identifiers:
+    A rasterisation per time stamp (pyrender, the last one is cached) draws every face in a
+    unique flat colour (its identifier; 0 = background) without multisampling, so every
+    sample names exactly one face:
 
-    - intensity: mean of the face intensities over the ``s x s`` samples of a pixel, in float64
-      (a box filter, i.e. area coverage to within ``1/s`` of a pixel, no 8-bit quantisation);
     - depth, flow: at the pixel centre (the centre sample, ``s`` odd), from the exact plane of
       the face seen there, so they are exact up to float64 rounding;
-    - edges: see :meth:`edges`.
+    - intensity and edges, ``method="raster"``: from the ``s x s`` samples of each pixel.
+
+    The default ``method="exact"`` of :meth:`intensity` and :meth:`edges` needs no raster:
+    the visible discontinuities are found analytically (box edges, exact ray casting against
+    the boxes), then the exact pixel-area average and the pixels they cross follow.
+    Both methods agree (tested); the exact ones are continuous in time and sub-pixel exact.
 
     The renderer owns an OpenGL context: call :meth:`close` (or use it as a context manager).
     """
 
     def __init__(self, width, height, fx, fy, cx, cy, boxes, trajectory, background=0.5,
-                 supersample=3):
+                 supersample=1):
         for name, value in (("width", width), ("height", height), ("supersample", supersample)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise TypeError(f"{name} must be an int, got {type(value).__name__}")
@@ -474,11 +547,14 @@ class MeshRenderer:
             raise
         self._renderer = renderer
 
+    def _check_open(self) -> None:
+        if self._renderer is None:
+            raise RuntimeError("MeshRenderer is closed")
+
     def _face_ids(self, t_s: float) -> np.ndarray:
         """Face identifiers (s*H, s*W) (uint8 or int32) of the supersampled image at ``t_s`` (cached)."""
         t_s = _finite(t_s, "t_s")
-        if self._renderer is None:
-            raise RuntimeError("MeshRenderer is closed")
+        self._check_open()
         if self._cache_t != t_s:
             pose = self.trajectory.pose(t_s)
             pose[:3, 1:3] *= -1.0  # OpenCV camera (y down, looks +z) -> OpenGL (y up, looks -z)
@@ -499,12 +575,28 @@ class MeshRenderer:
         return self._face_ids(t_s)[s // 2::s, s // 2::s]
 
     # -- public ---------------------------------------------------------------------------
-    def intensity(self, t_s: float) -> np.ndarray:
+    def intensity(self, t_s: float, method: str = "exact") -> np.ndarray:
         """Linear intensity image (H, W) float64 in [0, 1] at time ``t_s``.
 
-        Flat shading: a pixel wholly on one face has exactly that face's intensity; a pixel
-        shared by faces (or the background) has the mean over its ``s x s`` samples.
+        Flat shading: a pixel wholly on one face has exactly that face's intensity.
+
+        Parameters
+        ----------
+        t_s : float
+            Time in seconds.
+        method : {"exact", "raster"}, default "exact"
+            ``"exact"``: the exact area average (box filter) of the intensity over each pixel
+            square, computed from the visible discontinuities (see :meth:`edges`) by scanline
+            accumulation; measured within 1e-4 of a 400 x 400-sample brute force, and
+            continuous in time, which an event simulator needs (a rasterised image jumps when
+            an edge crosses a sample). ``"raster"``: the mean over the ``s x s`` rasterised
+            samples of the pixel (``s = supersample``; ``s = 1`` is aliased).
         """
+        if method == "exact":
+            self._check_open()
+            return np.clip(self._exact_intensity(_finite(t_s, "t_s")), 0.0, 1.0)
+        if method != "raster":
+            raise ValueError(f"method must be 'exact' or 'raster', got {method!r}")
         s = self.supersample
         values = self._lut[self._face_ids(t_s)]
         if s == 1:
@@ -591,6 +683,7 @@ class MeshRenderer:
         With ``s = 1`` it is the classic 8-neighbour definition (both sides of an edge marked).
         """
         if method == "exact":
+            self._check_open()
             return self._exact_edges(_finite(t_s, "t_s"), bool(contrast_only))
         if method != "raster":
             raise ValueError(f"method must be 'exact' or 'raster', got {method!r}")
@@ -614,14 +707,22 @@ class MeshRenderer:
         marked[:-1, 1:] |= diff_a
         return marked.reshape(self.height, s, self.width, s).any(axis=(1, 3))
 
-    def _exact_edges(self, t_s: float, contrast_only: bool) -> np.ndarray:
-        step_px, side_px, iterations = 0.125, 1e-4, 30
+    def _visible_pieces(self, t_s: float, contrast_only: bool, view_lo, view_hi):
+        """Visible discontinuities at ``t_s`` as straight pieces, clipped to ``[view_lo, view_hi]``.
+
+        Returns ``(start (K, 2), end (K, 2), left (K,), right (K,))``: image coordinates of the
+        ends and the face identifiers on either side of each piece (left = side of the normal
+        ``(-dv, du)``), constant along it. Every box edge is clipped to the near plane,
+        projected, clipped to the view and sampled every 1/8 px; at each sample the faces seen
+        1e-4 px to either side are found by exact ray casting; pieces are maximal runs of
+        samples with one (left, right) pair that differ, their ends refined by bisection.
+        """
+        step_px, side_px, iterations = 0.125, 1e-7, 32
         rot = self.trajectory.rotation(t_s)
         centre = self.trajectory.position(t_s)
-        mask = np.zeros((self.height, self.width), dtype=bool)
         focal, principal = np.array([self.fx, self.fy]), np.array([self.cx, self.cy])
         near_lo, near_hi = np.array([-np.inf, -np.inf, _ZNEAR_M]), np.full(3, np.inf)
-        view_lo, view_hi = np.array([-1.0, -1.0]), np.array([self.width, self.height], float)
+        view_lo, view_hi = np.asarray(view_lo, float), np.asarray(view_hi, float)
         starts, ends = [], []
         for a_w, b_w in self._box_edges:
             a_c, b_c = (a_w - centre) @ rot, (b_w - centre) @ rot
@@ -637,45 +738,110 @@ class MeshRenderer:
             if np.hypot(*(q - p)) > 1e-9:  # an edge seen end-on is a point of its neighbours
                 starts.append(p)
                 ends.append(q)
+        none = (np.empty((0, 2)), np.empty((0, 2)), np.empty(0, np.int64), np.empty(0, np.int64))
         if not starts:
-            return mask
+            return none
         starts, ends = np.array(starts), np.array(ends)
         delta = ends - starts
         length = np.hypot(delta[:, 0], delta[:, 1])
         normal = np.stack([-delta[:, 1], delta[:, 0]], axis=1) / length[:, None]
         values = self._lut
 
-        def discontinuous(seg, lam):
+        def sides(seg, lam):
+            """Key per sample: left * K + right when a discontinuity, else -1."""
             points = starts[seg] + lam[:, None] * delta[seg]
             both = np.concatenate([points + side_px * normal[seg], points - side_px * normal[seg]])
             rays = np.column_stack([(both - principal) / focal, np.ones(len(both))]) @ rot.T
             ids = _cast_rays(centre, rays, self._lo, self._hi)
             left, right = ids[: len(points)], ids[len(points):]
-            return values[left] != values[right] if contrast_only else left != right
+            jump = values[left] != values[right] if contrast_only else left != right
+            return np.where(jump, left * len(values) + right, -1)
 
         counts = np.maximum(np.ceil(length / step_px).astype(np.int64) + 1, 2)
         seg = np.repeat(np.arange(len(starts)), counts)
         offsets = np.cumsum(counts) - counts
         lam = (np.arange(seg.size) - offsets[seg]) / (counts[seg] - 1)
-        flag = discontinuous(seg, lam)
-        # transitions between consecutive samples of one segment, refined by bisection
-        k = np.flatnonzero((flag[:-1] != flag[1:]) & (seg[:-1] == seg[1:]))
-        lo_lam, hi_lam, lo_flag = lam[k].copy(), lam[k + 1].copy(), flag[k]
+        key = sides(seg, lam)
+        # changes of key between consecutive samples of one segment, refined by bisection
+        same_seg = seg[:-1] == seg[1:]
+        k = np.flatnonzero((key[:-1] != key[1:]) & same_seg)
+        lo_lam, hi_lam, lo_key = lam[k].copy(), lam[k + 1].copy(), key[k]
         for _ in range(iterations):
             mid = 0.5 * (lo_lam + hi_lam)
-            same = discontinuous(seg[k], mid) == lo_flag
+            same = sides(seg[k], mid) == lo_key
             lo_lam, hi_lam = np.where(same, mid, lo_lam), np.where(same, hi_lam, mid)
         crossing = dict(zip(k.tolist(), (0.5 * (lo_lam + hi_lam)).tolist()))
-        # visible runs: maximal sequences of discontinuous samples within a segment
-        run_start = np.flatnonzero(flag & np.r_[True, ~flag[:-1] | (seg[1:] != seg[:-1])])
-        run_end = np.flatnonzero(flag & np.r_[~flag[1:] | (seg[1:] != seg[:-1]), True])
-        for first, last in zip(run_start.tolist(), run_end.tolist()):
-            sid = seg[first]
-            lam0 = crossing.get(first - 1, lam[first])
-            lam1 = crossing.get(last, lam[last])
-            p, q = starts[sid] + lam0 * delta[sid], starts[sid] + lam1 * delta[sid]
-            _mark_segment(mask, p[0], p[1], q[0], q[1])
+        # pieces: maximal runs of one key >= 0 within a segment
+        new_run = np.r_[True, (key[1:] != key[:-1]) | ~same_seg]
+        end_run = np.r_[(key[1:] != key[:-1]) | ~same_seg, True]
+        run_start = np.flatnonzero(new_run & (key >= 0))
+        run_end = np.flatnonzero(end_run & (key >= 0))
+        if run_start.size == 0:
+            return none
+        sid = seg[run_start]
+        lam0 = np.array([crossing.get(f - 1, lam[f]) for f in run_start.tolist()])
+        lam1 = np.array([crossing.get(e, lam[e]) for e in run_end.tolist()])
+        p = starts[sid] + lam0[:, None] * delta[sid]
+        q = starts[sid] + lam1[:, None] * delta[sid]
+        return p, q, key[run_start] // len(values), key[run_start] % len(values)
+
+    def _exact_edges(self, t_s: float, contrast_only: bool) -> np.ndarray:
+        mask = np.zeros((self.height, self.width), dtype=bool)
+        p, q, _, _ = self._visible_pieces(t_s, contrast_only, (-1.0, -1.0), (self.width, self.height))
+        for (u0, v0), (u1, v1) in zip(p.tolist(), q.tolist()):
+            _mark_segment(mask, u0, v0, u1, v1)
         return mask
+
+    def _exact_intensity(self, t_s: float) -> np.ndarray:
+        """Exact box-filtered (area-averaged) intensity, by scanline accumulation of jumps.
+
+        Along a row, the image is the value at its left border plus the jumps across the
+        visible discontinuities crossed so far; integrating over the pixel square gives each
+        piece's exact contribution in closed form (as font rasterisers accumulate coverage).
+        """
+        height, width = self.height, self.width
+        lo, hi = (-0.5, -0.5), (width - 0.5, height - 0.5)
+        p, q, left, right = self._visible_pieces(t_s, True, lo, hi)
+        p, q, left, right = _merge_collinear(p, q, left, right)
+        values = self._lut
+        acc = np.zeros((height, width + 1))
+        for (u0, v0), (u1, v1), il, ir in zip(p.tolist(), q.tolist(), left.tolist(), right.tolist()):
+            if v0 == v1:
+                continue  # horizontal: crossed by no scanline
+            # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
+            jump = values[il] - values[ir] if v1 < v0 else values[ir] - values[il]
+            if v0 > v1:
+                u0, v0, u1, v1 = u1, v1, u0, v0
+            rows = np.arange(max(math.floor(v0 + 0.5), 0), min(math.ceil(v1 + 0.5), height))
+            ya = np.maximum(rows - 0.5, v0)
+            yb = np.minimum(rows + 0.5, v1)
+            keep = yb > ya
+            rows, ya, yb = rows[keep], ya[keep], yb[keep]
+            slope = (u1 - u0) / (v1 - v0)
+            xa, xb = u0 + (ya - v0) * slope, u0 + (yb - v0) * slope
+            h = yb - ya
+            first = np.maximum(np.floor(np.minimum(xa, xb) - 0.5), 0).astype(np.int64)
+            last = np.minimum(np.ceil(np.maximum(xa, xb) + 0.5), width - 1).astype(np.int64)
+            count = np.maximum(last - first + 1, 0)
+            r = np.repeat(np.arange(rows.size), count)
+            cols = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+            cover = _row_coverage(cols + 0.5, xa[r], xb[r], h[r]) - _row_coverage(cols - 0.5, xa[r], xb[r], h[r])
+            np.add.at(acc, (rows[r], cols), jump * cover)
+        return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :width]
+
+    def _left_border(self, t_s: float, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Mean intensity along the left image border ``u = -0.5`` over each row (H,)."""
+        height = self.height
+        ends = np.concatenate([p, q])
+        cuts = ends[np.abs(ends[:, 0] + 0.5) < 1e-9, 1]
+        breaks = np.unique(np.concatenate([np.arange(height + 1) - 0.5, np.clip(cuts, -0.5, height - 0.5)]))
+        mids = 0.5 * (breaks[1:] + breaks[:-1])
+        u = np.full(mids.size, -0.5 + 1e-7)
+        rays = np.column_stack([(u - self.cx) / self.fx, (mids - self.cy) / self.fy, np.ones(mids.size)])
+        ids = _cast_rays(self.trajectory.position(t_s), rays @ self.trajectory.rotation(t_s).T,
+                         self._lo, self._hi)
+        row = np.clip(np.floor(mids + 0.5).astype(np.int64), 0, height - 1)
+        return np.bincount(row, weights=self._lut[ids] * np.diff(breaks), minlength=height)
 
     def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
         """Upper bound on the image speed ``|flow|`` over all pixels for ``t`` in ``[t0_s, t1_s]``.

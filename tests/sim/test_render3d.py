@@ -136,10 +136,11 @@ def test_rpy_axes():
 
 
 # -- intensity and geometry -----------------------------------------------------------------------
+@pytest.mark.parametrize("method", ["exact", "raster"])
 @pytest.mark.parametrize("value", [0.0, 0.123456, 0.8, 1.0])
-def test_true_intensity_of_fronto_parallel_face(make, value):
-    r = make([slab(5.0, front=value)], background=0.5)
-    image = r.intensity(0.0)
+def test_true_intensity_of_fronto_parallel_face(make, value, method):
+    r = make([slab(5.0, front=value)], background=0.5, supersample=3)
+    image = r.intensity(0.0, method=method)
     assert image.dtype == np.float64 and image.shape == (180, 240)
     # face covers columns 100..139, rows 70..109 (centre pixel at 119.8, 89.8)
     np.testing.assert_allclose(image[72:108, 102:138], value, rtol=0, atol=1e-12)
@@ -150,7 +151,8 @@ def test_true_intensity_of_fronto_parallel_face(make, value):
 def test_projected_size_and_position_match_pinhole(make):
     # a 1 m wide, 0.6 m high face at 5 m, centred at x = 0.5 m: fx = 200, fy = 150
     bg, value = 0.5, 0.8
-    r = make([slab(5.0, half_w=0.5, half_h=0.3, front=value, cx=0.5)], fy=150.0, background=bg)
+    r = make([slab(5.0, half_w=0.5, half_h=0.3, front=value, cx=0.5)], fy=150.0, background=bg,
+             supersample=3)
     u0, u1 = 119.8 + 200 * 0.0 / 5, 119.8 + 200 * 1.0 / 5  # 119.8 .. 159.8: 40 px wide
     v0, v1 = 89.8 - 150 * 0.3 / 5, 89.8 + 150 * 0.3 / 5  # 80.8 .. 98.8: 18 px high
     ids = r._center_ids(0.0)
@@ -159,18 +161,77 @@ def test_projected_size_and_position_match_pinhole(make):
     rows = np.flatnonzero(on_face.any(axis=1))
     assert (cols[0], cols[-1]) == (120, 159) and len(cols) == 40
     assert (rows[0], rows[-1]) == (81, 98) and len(rows) == 18
-    image = r.intensity(0.0)
+    image, raster = r.intensity(0.0), r.intensity(0.0, method="raster")
     # pixels wholly on the face have its intensity exactly
     np.testing.assert_allclose(image[82:98, 121:159], value, rtol=0, atol=1e-12)
-    # partially covered pixels: box-filtered coverage, exact to within 1/s of the pixel area
+    np.testing.assert_allclose(raster[82:98, 121:159], value, rtol=0, atol=1e-12)
+    # partially covered pixels: the exact pixel-area average; the raster one to within 1/s
     s = r.supersample
     for row, col, area in [(90, 119, 0.0), (90, 120, 0.7), (90, 160, 0.3), (80, 130, 0.0),
-                           (81, 130, 0.7), (99, 130, 0.3)]:
+                           (81, 130, 0.7), (99, 130, 0.3), (81, 120, 0.49), (99, 160, 0.09)]:
         expected = bg + area * (value - bg)
-        assert abs(image[row, col] - expected) <= abs(value - bg) / s + 1e-12, (row, col)
-    assert image[90, 120] > bg and image[90, 160] > bg
+        assert image[row, col] == pytest.approx(expected, abs=1e-9), (row, col)
+        assert abs(raster[row, col] - expected) <= abs(value - bg) / s + 1e-12, (row, col)
+    assert raster[90, 120] > bg and raster[90, 160] > bg
     # consistency with the pinhole edges
     assert u0 < 120 and u1 > 159 and v0 < 81 and v1 > 98
+
+
+def brute_force_intensity(r, t, n):
+    """Mean intensity over an n x n grid of exact ray casts in every pixel."""
+    g = (np.arange(n) + 0.5) / n - 0.5
+    gu, gv = (a.ravel() for a in np.meshgrid(g, g))
+    v, u = np.mgrid[0:r.height, 0:r.width]
+    uu = (u[..., None] + gu).ravel()
+    vv = (v[..., None] + gv).ravel()
+    rays = np.stack([(uu - r.cx) / r.fx, (vv - r.cy) / r.fy, np.ones(uu.size)], axis=1)
+    ids = _cast_rays(r.trajectory.position(t), rays @ r.trajectory.rotation(t).T, r._lo, r._hi)
+    return r._lut[ids].reshape(r.height, r.width, -1).mean(axis=2)
+
+
+@pytest.mark.parametrize("stacked", [False, True])
+def test_exact_intensity_is_the_pixel_area_average(make, stacked):
+    tr = CameraTrajectory((0.6, -0.7, 0.0), (0.3, 0.0, 0.2), (0.1, -0.12, -0.1), (0.1, 0.2, 0.1))
+    if stacked:  # aligned faces: box edges project onto common lines, seen from y = 0
+        tr = CameraTrajectory((0.4, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.08), (0.0, 0.0, 0.0))
+        boxes = [Box3D((0.0, -0.5, 5.0), (1.0, 1.0, 1.0), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
+                 Box3D((0.0, 0.5, 5.0), (1.0, 1.0, 1.0), (0.9, 0.8, 0.7, 0.6, 0.95, 0.4)),
+                 Box3D((1.0, 0.5, 5.0), (1.0, 1.0, 1.0), (0.3, 0.8, 0.7, 0.6, 0.05, 0.4))]
+    else:
+        boxes = [Box3D((0.0, 0.0, 5.0), (1.0, 1.2, 1.4), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
+                 Box3D((0.8, 0.3, 7.0), (1.0, 1.2, 1.4), (0.9, 0.2, 0.7, 0.4, 0.95, 0.6)),
+                 Box3D((-1.5, -0.6, 4.0), (1.0, 1.2, 1.4), (0.9, 0.2, 0.7, 0.4, 0.95, 0.6))]
+    r = make(boxes, trajectory=tr, width=100, height=75, fx=80.0, fy=85.0, cx=49.7, cy=37.2)
+    n = 16
+    for t in (0.0, 0.4):
+        exact, brute = r.intensity(t), brute_force_intensity(r, t, n)
+        assert np.unique(brute).size > 20
+        # an n x n grid estimates the area of a pixel cut by edges to within about 1/n
+        assert np.abs(exact - brute).max() <= 1.5 / n
+        assert np.abs(exact - brute).mean() <= 1e-3
+        inside = ~r.edges(t)  # pixels no discontinuity crosses: one face, exactly
+        np.testing.assert_allclose(exact[inside], brute[inside], rtol=0, atol=1e-7)
+
+
+def test_exact_intensity_is_continuous_in_time(make):
+    # a rasterised image jumps when an edge crosses a sample; the area average moves by at
+    # most (edge length in the pixel, <= 2 sqrt 2 for two edges) x displacement x contrast
+    tr = CameraTrajectory((0.0, 0.0, 0.0), (0.5, 0.1, 0.0), (0.0, 0.0, 0.0), (0.0, 0.1, 0.05))
+    boxes = [Box3D((0.0, 0.0, 4.0), (1.0, 1.0, 1.0), (0.1, 0.2, 0.3, 0.4, 0.9, 0.6)),
+             Box3D((0.9, 0.3, 6.0), (1.0, 1.5, 1.0), (0.9, 0.1, 0.7, 0.4, 0.2, 0.6))]
+    r = make(boxes, trajectory=tr, width=120, height=90, fx=100.0, fy=100.0, cx=59.5, cy=44.5,
+             supersample=3)
+    dt = 2e-5
+    vmax = r.max_speed_px_s(0.0, 0.01)
+    bound = 2 * math.sqrt(2) * vmax * dt * 0.9
+    previous, previous_raster = r.intensity(0.0), r.intensity(0.0, method="raster")
+    jumps = 0.0
+    for k in range(1, 60):
+        now, raster = r.intensity(k * dt), r.intensity(k * dt, method="raster")
+        assert np.abs(now - previous).max() <= bound
+        jumps = max(jumps, np.abs(raster - previous_raster).max())
+        previous, previous_raster = now, raster
+    assert jumps > 5 * bound  # the test can tell: the raster image does jump
 
 
 def test_depth_is_exact_and_infinite_on_background(make):
@@ -310,7 +371,7 @@ def test_speed_bound_holds_for_random_motion(make, seed):
     ],
 )
 def test_edges_of_fronto_parallel_face_are_its_outline(make, method, centre, count):
-    r = make([slab(5.0)], cx=centre, cy=centre - 30.0)
+    r = make([slab(5.0)], cx=centre, cy=centre - 30.0, supersample=3)
     edges = r.edges(0.0, method=method)
     assert edges.dtype == bool and edges.shape == (180, 240)
     # the face projects to cx + [-20, 20], cy + [-20, 20]; a closed pixel square
@@ -343,7 +404,7 @@ def test_edges_lie_on_projected_box_edges(make):
         seg = uv[b] - uv[a]
         lam = np.clip(((pix - uv[a]) @ seg) / (seg @ seg), 0, 1)
         dist = np.minimum(dist, np.linalg.norm(pix - (uv[a] + lam[:, None] * seg), axis=1))
-    assert np.all(dist <= math.sqrt(0.5) + 1.0 / r.supersample)
+    assert np.all(dist <= math.sqrt(0.5) + 1e-9)
     # and the visible outline is closed: the edge set has no gaps along a crease
     assert edges.sum() > 150
     # completeness: where neighbouring pixel centres see different faces, the discontinuity
@@ -359,7 +420,8 @@ def test_exact_edges_match_brute_force_and_raster(make):
     tr = CameraTrajectory((0.6, -0.7, 0.0), (0.0, 0.0, 0.0), (0.1, -0.12, -0.1), (0.0, 0.0, 0.0))
     boxes = [Box3D((0.0, 0.0, 5.0), (1.0, 1.2, 1.4), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
              Box3D((0.8, 0.3, 7.0), (1.0, 1.2, 1.4), (0.6, 0.5, 0.4, 0.3, 0.2, 0.1))]
-    r = make(boxes, trajectory=tr, width=120, height=90, fx=100.0, fy=100.0, cx=59.8, cy=44.8)
+    r = make(boxes, trajectory=tr, width=120, height=90, fx=100.0, fy=100.0, cx=59.8, cy=44.8,
+             supersample=3)
     exact, raster = r.edges(0.0), r.edges(0.0, method="raster")
     # brute force: a pixel is an edge iff a 21 x 21 grid over its closed square sees > 1 face
     grown = exact | raster
