@@ -153,8 +153,12 @@ def _delta_label(fm_kind: dict, delta: float) -> str | None:
     return None
 
 
-def intra_verdicts(fmeasure: dict) -> list[dict]:
-    """``intra_global`` and ``intra_scattered`` from the RANSAC study."""
+def intra_verdicts(fmeasure: dict, sensitivity: dict | None = None) -> list[dict]:
+    """``intra_global`` and ``intra_scattered`` from the RANSAC study.
+
+    ``sensitivity`` (the study's ``truth_tolerance_sensitivity``) adds the same
+    F-measure comparison under other definitions of a true inlier.
+    """
     out = []
     for kind, claim in (("global", "Under global noise, intra-pixel-area events (delta 0.25) help the "
                                    "F-measure of RANSAC's inlier decision"),
@@ -176,6 +180,20 @@ def intra_verdicts(fmeasure: dict) -> list[dict]:
         trend_txt = "; ".join(f"delta {d:g}: F {_fmt(f, 3)}, err {_fmt(e, 3)}" for d, f, e in trend)
         ev = (f"mean over noise > 0: F without intra {_fmt(f0, 3)}, with delta 0.25 {_fmt(f1, 3)}; "
               f"relative lifetime error without {_fmt(e0, 3)}, with {_fmt(e1, 3)}. By delta: {trend_txt}")
+        reversed_at = []
+        for tol_name, per_kind in (sensitivity or {}).items():
+            fk_s = per_kind.get(kind, {})
+            if "no_intra" in fk_s and lab in fk_s:
+                lv = np.asarray(fk["no_intra"]["noise_px"], float) > 0
+                a = np.nanmean(np.asarray(fk_s["no_intra"], float)[lv]) if lv.any() else np.nan
+                b = np.nanmean(np.asarray(fk_s[lab], float)[lv]) if lv.any() else np.nan
+                tol = tol_name.replace("truth_tol_", "")
+                ev += f". With true inliers defined at {tol}: F {_fmt(a, 3)} -> {_fmt(b, 3)}"
+                if np.isfinite(a) and np.isfinite(b) and (b > a) != (f1 > f0):
+                    reversed_at.append(tol)
+        if reversed_at:
+            ev += (f". NOT ROBUST: the F-measure comparison reverses when true inliers are defined at "
+                   f"{', '.join(reversed_at)} (the default is the study's truth_tol_px)")
         if kind == "global":
             holds = bool(f1 > f0)
         else:
@@ -236,5 +254,5 @@ def real_verdicts(real: dict) -> list[dict]:
 def all_verdicts(results: dict) -> list[dict]:
     """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real)."""
     return (cdm_verdicts(results.get("cdm") or {}, results.get("cdm_diagnostics"))
-            + intra_verdicts(results.get("fmeasure") or {})
+            + intra_verdicts(results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity"))
             + lifetime_verdicts(results.get("lifetime") or {}) + real_verdicts(results.get("real") or {}))

@@ -70,3 +70,11 @@ def test_consistency_verdict_flags_the_mueggler_time_origin_quirk():
     consistent = [x for x in v if "consistent" in x["claim"]][0]
     assert consistent["status"] == "holds"
     assert "absolute-time quirk" in consistent["evidence"]
+
+
+def test_intra_verdict_says_when_the_truth_definition_reverses_it():
+    sens = {"truth_tol_0.1px": {"global": {"no_intra": [1.0, 0.6], "intra_delta_0.25": [1.0, 0.5]}}}
+    v = intra_verdicts({"global": _fm(0.5, 0.7, 0.2, 0.2)}, sens)
+    assert v[0]["status"] == "holds" and "NOT ROBUST" in v[0]["evidence"]
+    sens = {"truth_tol_0.1px": {"global": {"no_intra": [1.0, 0.5], "intra_delta_0.25": [1.0, 0.6]}}}
+    assert "NOT ROBUST" not in intra_verdicts({"global": _fm(0.5, 0.7, 0.2, 0.2)}, sens)[0]["evidence"]
