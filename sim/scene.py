@@ -182,7 +182,9 @@ def _sensor(t: _Table) -> Sensor:
     w = t.number("width", base.get("width"), lo=1, hi=32767, integer=True)
     h = t.number("height", base.get("height"), lo=1, hi=32767, integer=True)
     if "width" in t.data or "height" in t.data:
-        base.pop("fx", None)
+        # another size: the preset's intrinsics no longer apply
+        for k in ("fx", "fy", "cx", "cy"):
+            base.pop(k, None)
     f_default = base.get("fx", float(w))
     fx = t.number("fx", f_default, lo=0, lo_open=True)
     fy = t.number("fy", base.get("fy", fx), lo=0, lo_open=True)

@@ -112,3 +112,15 @@ def test_file_level_errors(tmp_path):
     nohead.write_text('[sensor]\npreset = "dvs128"\n')
     with pytest.raises(SceneError, match="nohead.toml: key 'scene': missing table"):
         load_scene(nohead)
+
+
+def test_sensor_presets_and_overrides():
+    d = _base()
+    s = parse_scene(d, "a.toml").sensor
+    assert (s.width, s.height, s.fx, s.cx) == (240, 180, 199.092, 132.192)
+    d["sensor"] = {"preset": "davis240", "width": 100, "height": 80}
+    s = parse_scene(d, "a.toml").sensor
+    assert (s.width, s.height, s.fx, s.fy, s.cx, s.cy) == (100, 80, 100.0, 100.0, 49.5, 39.5)
+    d["sensor"] = {"width": 64, "height": 48, "fx": 50.0, "cy": 20.0}
+    s = parse_scene(d, "a.toml").sensor
+    assert (s.fx, s.fy, s.cx, s.cy) == (50.0, 50.0, 31.5, 20.0)
