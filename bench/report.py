@@ -188,7 +188,10 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
          "(Lee, Kim &amp; Kim, BMVC 2019) &mdash; reproduction report</h1>",
          f"<p class='small'>Generated {_e(run.get('date_utc', ''))} by <code>{_e(run.get('command', ''))}</code>"
          f" in {_num(run.get('wall_time_s'), 1)} s; mode: {'quick' if run.get('quick') else 'full'}. "
-         f"Versions: {_e(', '.join(f'{k} {v}' for k, v in run.get('versions', {}).items()))}.</p>",
+         f"Versions: {_e(', '.join(f'{k} {v}' for k, v in run.get('versions', {}).items()))}. "
+         "Reproduce: <code>evedge demo</code> (quick) or <code>evedge bench paper -o OUT</code> (full); "
+         "numbers: <code>results.json</code> beside this page, per-experiment CSV/JSON/PNG in its "
+         "sub-directories.</p>",
          "<h2>Do the paper's claims hold?</h2>", _verdict_section(results.get("verdicts", []))]
     if results.get("skipped"):
         h.insert(-2, "<div class='nc'><b>Skipped (input data absent):</b><ul>"

@@ -78,6 +78,18 @@ def test_write_report_minimal(tmp_path):
     assert "a note" in path.read_text()
 
 
+def test_cli_lists_the_experiments_and_demo_help():
+    from evedge.bench.cli import demo
+
+    runner = CliRunner()
+    r = runner.invoke(bench, ["--help"])
+    assert r.exit_code == 0
+    for name in ("paper", "ransac", "lifetime", "similarity", "qualitative", "real"):
+        assert name in r.output
+    r = runner.invoke(demo, ["--help"])
+    assert r.exit_code == 0 and "demo_out" in r.output
+
+
 def test_cli_ransac_and_unknown_experiment(tmp_path):
     runner = CliRunner()
     r = runner.invoke(bench, ["ransac", "-o", str(tmp_path), "--repetitions", "3", "--no-progress"])
