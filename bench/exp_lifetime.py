@@ -194,14 +194,24 @@ def _plot(out_dir: Path, name: str, res: dict, arrays: dict) -> list[Path]:
         for k in keys:
             vals = arrays[k][0]
             colour = METHOD_COLOURS.get(k, "k")
-            label = METHOD_LABELS.get(k, "ground truth")
-            ax.hist(vals, bins=bins, histtype="step", lw=1.5, color=colour, label=label,
-                    density=True, ls="--" if k == "truth" else "-")
-            peaks = res["truth"]["peaks"] if k == "truth" else res["methods"][k]["peaks"]
-            for p in peaks:
-                ax.axvline(p["mode"], color=colour, lw=0.6, ls=":")
+            if k == "truth":
+                # the true lifetimes are a few exact values: mark them, a histogram
+                # spike would flatten the estimators' curves
+                for j, p in enumerate(res["truth"]["peaks"]):
+                    ax.axvline(p["median"], color="k", lw=1.5, ls="--",
+                               label="true lifetimes" if j == 0 else None)
+                continue
+            ax.hist(vals, bins=bins, histtype="step", lw=1.5, color=colour, label=METHOD_LABELS.get(k, k),
+                    density=True)
+            for p in res["methods"][k]["peaks"]:
+                ax.axvline(p["mode"], color=colour, lw=0.8, ls=":")
         ax.set_xscale("log")
-    ax.set_xlabel("lifetime (us)")
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 1e3:g}"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("lifetime (ms)")
     ax.set_ylabel("density")
     ax.legend(fontsize=8)
     ax.set_title(f"{name}: lifetime histogram (dotted: peaks found)")
