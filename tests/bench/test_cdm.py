@@ -1,6 +1,5 @@
 """Known answers for the Closest Distance Metric."""
 
-import itertools
 
 import numpy as np
 import pytest
