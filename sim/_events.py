@@ -91,18 +91,31 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
     pixels passing the pre-test; the fill pass (``fill`` True) then visits only
     ``cand[:n_cand]`` (two-pass sizing: count, then fill).
 
-    Returns ``(n_events, n_moved, n_cand)``: the events emitted, the pixels
-    whose reference level moved (non-zero ``n_moved`` with ``n_events == 0``
-    when all crossings fell in refractory periods: the fill pass must still
-    run) and the candidates written to ``cand`` (count pass only).
+    Returns ``(n_events, n_moved, n_cand, max_dl)``: the events emitted, the
+    pixels whose reference level moved (non-zero ``n_moved`` with
+    ``n_events == 0`` when all crossings fell in refractory periods: the fill
+    pass must still run), the candidates written to ``cand`` and the largest
+    ``|Delta L|`` over the image (the last two from the count pass only; the
+    sampler uses ``max_dl`` to accept or reject the step, as
+    :func:`_max_log_change`).
     """
     n = 0
     n_moved = 0
     m = 0
+    ratio = 1.0
     span = t1 - t0
     for j in range(n_cand if fill else i0.shape[0]):
         i = cand[j] if fill else j
+        if not fill and i1[i] == i0[i]:
+            # unchanged pixel: it was inside its thresholds at i0, so it still is (most pixels)
+            continue
         a = i1[i] + eps
+        if not fill:
+            b = i0[i] + eps
+            if a > ratio * b:
+                ratio = a / b
+            elif b > ratio * a:
+                ratio = b / a
         # conservative pre-test; the decision itself is made on logarithms below
         if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
             continue
@@ -153,7 +166,7 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
             e_lo[i] = math.exp(lr - cn)
             last_t[i] = last
             seq[i] = k
-    return n, n_moved, m
+    return n, n_moved, m, math.log(ratio)
 
 
 @njit(cache=True)

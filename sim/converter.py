@@ -37,7 +37,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _convert, _max_log_change, _max_log_gradient, _noise, _noise_first_arrivals
+from ._events import _convert, _max_log_gradient, _noise, _noise_first_arrivals
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
 from evedge.events import EVENT_DTYPE
@@ -222,7 +222,7 @@ class EventConverter:
                 dt = max(p.min_step_s, min(dt, limit / (vmax * grad)))
             t1 = min(self.t + dt, self.duration_s)
             i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()
-            self._interval(self.t, t1, self._i, i1)
+            self._interval(self.t, t1, self._i, i1, self._count(self.t, t1, self._i, i1))
             self.t = t1
             self._i = i1
             self.n_samples += 1
@@ -230,7 +230,8 @@ class EventConverter:
         while True:
             t1 = min(self.t + dt, self.duration_s)
             i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()
-            dl = _max_log_change(self._i, i1, p.log_eps)
+            counted = self._count(self.t, t1, self._i, i1)  # also measures max |Delta L|
+            dl = counted[3]
             if dl <= limit or (t1 - self.t) <= p.min_step_s * 1.0000001:
                 break
             self.n_rejected += 1
@@ -239,19 +240,29 @@ class EventConverter:
         grow = 2.0 if dl <= 0 else min(2.0, 0.9 * limit / dl)
         if t1 < self.duration_s:  # the clipped last step says nothing about the next one
             self._dt = step * grow
-        self._interval(self.t, t1, self._i, i1)
+        self._interval(self.t, t1, self._i, i1, counted)
         self.t = t1
         self._i = i1
         self.n_samples += 1
 
-    def _interval(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray) -> None:
+    def _kernel_args(self, t0, t1, i0, i1):
         p = self.params
-        args = (i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg,
+        return (i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg,
                 self.last_t, p.refractory_us * 1e-6, self.seq, p.jitter_us * 1e-6, self._jitter_seed)
+
+    def _count(self, t0, t1, i0, i1):
+        """First pass: ``(n_events, n_moved, n_cand, max |Delta L|)``; mutates nothing but scratch."""
+        empty_f = np.empty(0)
+        return _convert(*self._kernel_args(t0, t1, i0, i1), False, self._cand, 0, np.empty(0, dtype=np.int64),
+                        empty_f, empty_f, np.empty(0, dtype=np.bool_))
+
+    def _interval(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray, counted) -> None:
+        p = self.params
+        args = self._kernel_args(t0, t1, i0, i1)
         empty_i = np.empty(0, dtype=np.int64)
         empty_f = np.empty(0)
         empty_b = np.empty(0, dtype=np.bool_)
-        n, moved, n_cand = _convert(*args, False, self._cand, 0, empty_i, empty_f, empty_f, empty_b)
+        n, moved, n_cand, _ = counted
         if moved:
             pix = np.empty(n, dtype=np.int64)
             t_true = np.empty(n)
@@ -259,8 +270,10 @@ class EventConverter:
             pol = np.empty(n, dtype=np.bool_)
             _convert(*args, True, self._cand, n_cand, pix, t_true, t_emit, pol)
         if n:
-            truth = self._truth(pix, t_true, t0, t1, i0, i1)
-            self._pending.append(dict(pix=pix, t=t_emit, p=pol, noise=np.zeros(n, dtype=np.bool_), truth=truth))
+            # geometric truth is computed per flush, in one vectorised call (cheaper than per sample)
+            truth = None if self._geometric else self._truth(pix, t_true, t0, t1, i0, i1)
+            self._pending.append(dict(pix=pix, t=t_emit, t_true=t_true, p=pol, noise=np.zeros(n, dtype=np.bool_),
+                                      truth=truth))
         else:
             self._flow = None
         if p.noise_rate_hz > 0 and t1 > self._noise_until:
@@ -275,10 +288,10 @@ class EventConverter:
                 tn = np.empty(m)
                 pol = np.empty(m, dtype=np.bool_)
                 _noise(*nargs, True, pix, tn, pol)
-                self._pending.append(dict(pix=pix, t=tn, p=pol, noise=np.ones(m, dtype=np.bool_),
+                self._pending.append(dict(pix=pix, t=tn, t_true=tn, p=pol, noise=np.ones(m, dtype=np.bool_),
                                           truth=empty_truth(m)))
 
-    def _truth(self, pix, t_true, t0, t1, i0, i1) -> np.ndarray:
+    def _truth(self, pix, t_true, t0=None, t1=None, i0=None, i1=None) -> np.ndarray:
         x = pix % self.width
         y = pix // self.width
         out = np.empty(pix.shape[0], dtype=TRUTH_DTYPE)
@@ -317,9 +330,14 @@ class EventConverter:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
         pix = np.concatenate([c["pix"] for c in self._pending])
         t = np.concatenate([c["t"] for c in self._pending])
+        t_true = np.concatenate([c["t_true"] for c in self._pending])
         pol = np.concatenate([c["p"] for c in self._pending])
         noise = np.concatenate([c["noise"] for c in self._pending])
-        truth = np.concatenate([c["truth"] for c in self._pending])
+        todo = np.concatenate([np.full(c["pix"].shape[0], c["truth"] is None) for c in self._pending])
+        truth = np.concatenate([empty_truth(c["pix"].shape[0]) if c["truth"] is None else c["truth"]
+                                for c in self._pending])
+        if np.any(todo):
+            truth[todo] = self._truth(pix[todo], t_true[todo])
         t_us = np.rint(t * 1e6).astype(np.int64)
         if cut_us is None:
             done = t_us <= int(round(self.duration_s * 1e6))
@@ -329,7 +347,8 @@ class EventConverter:
             keep = ~done
         self._pending = []
         if np.any(keep):
-            self._pending.append(dict(pix=pix[keep], t=t[keep], p=pol[keep], noise=noise[keep], truth=truth[keep]))
+            self._pending.append(dict(pix=pix[keep], t=t[keep], t_true=t_true[keep], p=pol[keep], noise=noise[keep],
+                                      truth=truth[keep]))
         pix, t, pol, noise, truth, t_us = pix[done], t[done], pol[done], noise[done], truth[done], t_us[done]
         # time order; ties by pixel, then exact time (a signal and a noise event of one pixel never
         # share an exact float time, so the order is total and independent of the chunking)

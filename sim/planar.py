@@ -116,21 +116,32 @@ class ShapesRenderer:
         self._cy = np.array([c.center_px[1] for c in self.circles], dtype=np.float64)
         self._cr = np.array([c.radius_px for c in self.circles], dtype=np.float64)
         self._cflip = np.array([1.0 if c.intensity < self.background else -1.0 for c in self.circles])
+        # the composition stays in [0, 1] unless shapes overlap (bounding circles as a cheap test;
+        # the motion is rigid, so it does not change this)
+        centres = [(p.vertices_px.mean(axis=0), np.max(np.hypot(*(p.vertices_px - p.vertices_px.mean(axis=0)).T)))
+                   for p in self.polygons] + [(np.asarray(c.center_px), c.radius_px) for c in self.circles]
+        self._may_overlap = any(np.hypot(*(a[0] - b[0])) < a[1] + b[1]
+                                for k, a in enumerate(centres) for b in centres[:k])
+        self._allx = np.concatenate([self._px, self._cx])
+        self._ally = np.concatenate([self._py, self._cy])
 
     def _render(self, t_s: float):
         w, h = self.width, self.height
         out = np.full(w * h, self.background)
         edge = np.zeros(w * h, dtype=np.bool_)
+        # one motion evaluation for all vertices and circle centres
+        x, y = self.motion.to_image(self._allx, self._ally, t_s)
+        npv = self._px.shape[0]
         if self.polygons:
-            x, y = self.motion.to_image(self._px, self._py, t_s)
-            _render_polygons(out, edge, self._acc, w, h, np.ascontiguousarray(x), np.ascontiguousarray(y),
+            _render_polygons(out, edge, self._acc, w, h, np.ascontiguousarray(x[:npv]), np.ascontiguousarray(y[:npv]),
                              self._pstart, self._pvalue, self.background, EDGE_AREA_TOL)
         if self.circles:
-            cx, cy = self.motion.to_image(self._cx, self._cy, t_s)
+            cx, cy = x[npv:], y[npv:]
             for k, c in enumerate(self.circles):
                 _render_disk(out, edge, w, h, float(cx[k]), float(cy[k]), c.radius_px, c.intensity,
                              self.background, EDGE_AREA_TOL)
-        np.clip(out, 0.0, 1.0, out=out)
+        if self._may_overlap:
+            np.clip(out, 0.0, 1.0, out=out)
         return out.reshape(h, w), edge.reshape(h, w)
 
     def intensity(self, t_s: float) -> np.ndarray:

@@ -81,12 +81,13 @@ def test_convert_kernel_matches_reference(ref, with_refractory, jitter_s):
                     jitter_s, jseed)
     e = np.empty(0)
     cand = np.empty(n, np.int64)
-    count, moved, n_cand = _convert(*args(), False, cand, 0, np.empty(0, np.int64), e, e, np.empty(0, bool))
+    count, moved, n_cand, dl = _convert(*args(), False, cand, 0, np.empty(0, np.int64), e, e, np.empty(0, bool))
+    assert dl == pytest.approx(np.abs(np.log(i1 + eps) - np.log(i0 + eps)).max(), rel=1e-13)
     assert count == len(want) > 50
     assert moved == np.count_nonzero(np.asarray(wl) != lref)
     assert moved <= n_cand < n
     pix, tt, te, pol = np.empty(count, np.int64), np.empty(count), np.empty(count), np.empty(count, bool)
-    assert _convert(*args(), True, cand, n_cand, pix, tt, te, pol) == (count, moved, 0)
+    assert _convert(*args(), True, cand, n_cand, pix, tt, te, pol) == (count, moved, 0, 0.0)
     np.testing.assert_array_equal(pix, [w[0] for w in want])
     np.testing.assert_allclose(tt, [w[1] for w in want], rtol=0, atol=1e-12)
     np.testing.assert_allclose(te, [w[2] for w in want], rtol=0, atol=1e-12)
