@@ -9,7 +9,10 @@ Modules (imported on use; nothing heavy at import time):
 ``stats``
     F-measure, relative errors, robust histogram peaks.
 ``methods``
-    Edge maps of the compared methods (proposed, Mueggler, 1 ms, 30 ms, count).
+    Edge maps of the compared methods (proposed, Mueggler, 1 ms, 30 ms, count)
+    and the diagnostic variant (Mueggler with a shifted time origin).
+``frame_eval``
+    Canny references of frames and CDM tables per frame.
 ``exp_ransac``, ``exp_lifetime``, ``exp_similarity``, ``exp_qualitative``, ``exp_real``
     The experiments (paper figs. 7, 4-5, 9, 1/8, real frames).
 ``verdicts``, ``report``, ``paper``
