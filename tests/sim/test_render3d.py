@@ -189,10 +189,16 @@ def brute_force_intensity(r, t, n):
     return r._lut[ids].reshape(r.height, r.width, -1).mean(axis=2)
 
 
-@pytest.mark.parametrize("stacked", [False, True])
-def test_exact_intensity_is_the_pixel_area_average(make, stacked):
+@pytest.mark.parametrize("layout", ["apart", "stacked", "overlapping"])
+def test_exact_intensity_is_the_pixel_area_average(make, layout):
     tr = CameraTrajectory((0.6, -0.7, 0.0), (0.3, 0.0, 0.2), (0.1, -0.12, -0.1), (0.1, 0.2, 0.1))
-    if stacked:  # aligned faces: box edges project onto common lines, seen from y = 0
+    if layout == "overlapping":  # a floor reaching behind the camera, a wall through it, a box
+        tr = CameraTrajectory((0, 0, 0), (0.3, 0, 0.5), (0.05, 0.1, -0.2), (0.1, 0.2, 0.0))
+        boxes = [Box3D((0, 1.5, 10), (20, 1.0, 40), (0.2, 0.2, 0.35, 0.6, 0.25, 0.25)),
+                 Box3D((0, 0, 12), (30, 30, 0.5), (0.8,) * 6),
+                 Box3D((0.5, 0.5, 4), (1, 1, 1), (0.1, 0.9, 0.3, 0.6, 0.7, 0.2)),
+                 Box3D((0.9, 0.7, 4.2), (1, 0.5, 1.2), (0.5, 0.1, 0.95, 0.6, 0.05, 0.2))]
+    elif layout == "stacked":  # aligned faces: box edges project onto common lines, seen from y = 0
         tr = CameraTrajectory((0.4, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.08), (0.0, 0.0, 0.0))
         boxes = [Box3D((0.0, -0.5, 5.0), (1.0, 1.0, 1.0), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
                  Box3D((0.0, 0.5, 5.0), (1.0, 1.0, 1.0), (0.9, 0.8, 0.7, 0.6, 0.95, 0.4)),
