@@ -221,12 +221,13 @@ def lifetime_verdicts(lifetime: dict) -> list[dict]:
                                                              or "none"))
         holds = bool(fw["proposed"] < fw["mueggler"])
         err = {m: per[m].get("median_rel_error") for m in ("proposed", "mueggler")}
-        if all(v is not None and np.isfinite(v) for v in err.values()):
+        has_err = all(v is not None and np.isfinite(v) for v in err.values())
+        if has_err:
             parts.append(f"median relative lifetime error: proposed {_fmt(err['proposed'], 3)}, "
                          f"Mueggler {_fmt(err['mueggler'], 3)}")
             holds = holds and bool(err["proposed"] < err["mueggler"])
         out.append(_verdict(holds, f"[{ds}] Proposed lifetimes are sharper (narrower histogram peaks"
-                                   f"{', lower error vs truth' if len(parts) > 1 else ''}) than Mueggler's",
+                                   f"{', lower error vs truth' if has_err else ''}) than Mueggler's",
                             "; ".join(parts), {"fwhm_log10": fw, "median_rel_error": err}))
     return out
 

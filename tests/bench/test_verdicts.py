@@ -56,6 +56,9 @@ def test_lifetime_and_real_claims():
     lt = {"d": {"proposed": {"peaks": [{"fwhm_log10": 0.1, "mode": 1000.0}], "median_rel_error": 0.05},
                 "mueggler": {"peaks": [{"fwhm_log10": 0.2, "mode": 1100.0}], "median_rel_error": 0.1}}}
     assert lifetime_verdicts(lt)[0]["status"] == "holds"
+    assert "lower error" in lifetime_verdicts(lt)[0]["claim"]
+    no_truth = {"d": {m: {"peaks": v["peaks"]} for m, v in lt["d"].items()}}
+    assert "lower error" not in lifetime_verdicts(no_truth)[0]["claim"]
     lt["d"]["proposed"]["median_rel_error"] = 0.5
     assert lifetime_verdicts(lt)[0]["status"] == "fails"
     real = {"r": {"proposed": {"median": {"c": 50.0}}, "acc_30ms": {"median": {"c": 60.0}}}}
