@@ -7,8 +7,9 @@ and two-pass output sizing (count, then fill) as in esim_torch.
 
 Adaptive sampling, two modes (``sampling``):
 
-- ``"verified"`` (default for analytic renderers, whose intensity is a
-  continuous function of time): after a sample at ``t`` the next step is
+- ``"verified"`` (the default: renderers whose intensity is a continuous
+  function of time, i.e. exact area coverage, like the analytic renderers and
+  the exact 3-D renderer): after a sample at ``t`` the next step is
   proposed as ``min(1 / min_rate_hz, max_step_px / v_max,
   dt_prev * min(2, 0.9 lambda C / dL_prev))`` where ``dL_prev`` is the
   previous step's largest ``|Delta L|`` over the image, ``C`` the smallest
@@ -17,9 +18,10 @@ Adaptive sampling, two modes (``sampling``):
   ``lambda C`` the step is shrunk and re-rendered. So every accepted step
   changes no pixel's log intensity by more than ``lambda C`` (unless it hit
   ``min_step_s``): ESIM's rule [1]_ made a guarantee.
-- ``"predicted"`` (default for other renderers, e.g. the supersampled 3-D
-  renderer, whose intensity jumps in small steps as sub-samples flip, so
-  that shrinking a step does not shrink ``|Delta L|``): ESIM's rule
+- ``"predicted"`` (the default for renderers that declare
+  ``continuous_in_time = False``, e.g. supersampled ones, whose intensity
+  jumps in small steps as sub-samples flip, so that shrinking a step does not
+  shrink ``|Delta L|``): ESIM's rule
   ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
   differences of the current sample, capped as above by ``1 / min_rate_hz``
   and ``max_step_px / v_max``.
@@ -79,9 +81,9 @@ class ConverterParams:
     min_step_s : float
         Smallest step (guards against stalls on discontinuous intensity).
     sampling : str
-        ``"auto"`` (verified for renderers with exact geometry, i.e.
-        :class:`~evedge.sim.renderer.GeometricTruth`, predicted otherwise),
-        ``"verified"`` or ``"predicted"`` (see the module docstring).
+        ``"auto"`` (verified unless the renderer has an attribute
+        ``continuous_in_time`` set to False), ``"verified"`` or
+        ``"predicted"`` (see the module docstring).
     """
 
     contrast_pos: float = 0.2
@@ -163,7 +165,10 @@ class EventConverter:
         self.height = int(renderer.height)
         self._geometric = isinstance(renderer, GeometricTruth)
         mode = params.sampling
-        self.verified = self._geometric if mode == "auto" else mode == "verified"
+        if mode == "auto":
+            self.verified = bool(getattr(renderer, "continuous_in_time", True))
+        else:
+            self.verified = mode == "verified"
         self.reset()
 
     def reset(self) -> None:

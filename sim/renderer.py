@@ -6,6 +6,11 @@ interval (used to bound the sampling step). Planar analytic renderers
 (:mod:`evedge.sim.planar`) and the 3-D mesh renderer
 (:class:`evedge.sim.render3d.MeshRenderer`) implement it.
 
+A renderer whose intensity is not a continuous function of time (e.g.
+supersampled: it jumps as sub-samples flip) should set an attribute
+``continuous_in_time = False``; the converter then samples by ESIM's predicted
+rule instead of verifying each step (see :mod:`evedge.sim.converter`).
+
 Renderers that know their geometry may also implement :class:`GeometricTruth`;
 the simulator then takes each event's flow and brightness-gradient direction
 from the geometry at the event's exact time instead of from the sampled frames.
