@@ -191,7 +191,11 @@ def intra_verdicts(fmeasure: dict, sensitivity: dict | None = None) -> list[dict
                 ev += f". With true inliers defined at {tol}: F {_fmt(a, 3)} -> {_fmt(b, 3)}"
                 if np.isfinite(a) and np.isfinite(b) and (b > a) != (f1 > f0):
                     reversed_at.append(tol)
-        if reversed_at:
+        if reversed_at and kind == "scattered" and e1 > e0:
+            ev += (f". The F-measure comparison reverses when true inliers are defined at "
+                   f"{', '.join(reversed_at)}; the lifetime-error comparison, which does not depend on that "
+                   f"definition, carries the verdict")
+        elif reversed_at:
             ev += (f". NOT ROBUST: the F-measure comparison reverses when true inliers are defined at "
                    f"{', '.join(reversed_at)} (the default is the study's truth_tol_px)")
         if kind == "global":
