@@ -1,13 +1,17 @@
 """Offscreen 3-D renderer of box scenes seen by a moving camera, with exact ground truth.
 
 A scene is a set of axis-aligned boxes whose six faces each have one flat linear intensity,
-seen by a pinhole camera that moves with constant linear and angular velocity. From one
-rasterisation per time stamp (pyrender, EGL, Mesa llvmpipe) the renderer derives:
+seen by a pinhole camera that moves with constant linear and angular velocity. The renderer
+gives, at any time:
 
-- ``intensity``: box-filtered (supersampled) flat-shaded image in linear units;
-- ``depth``: exact z-depth, the pixel ray intersected with the plane of the visible face;
+- ``intensity``: the flat-shaded image in linear units, box-filtered exactly (the area average
+  over each pixel square, from the visible outline found analytically), so it is continuous in
+  time; or, ``method="raster"``, the mean of supersampled rasterised samples;
+- ``depth``: exact z-depth, the pixel ray intersected with the plane of the visible face
+  (the face at the pixel centre comes from one pyrender rasterisation, EGL, Mesa llvmpipe);
 - ``flow``: the exact motion field of the static scene (Longuet-Higgins & Prazdny);
-- ``edges``: the pixels crossed by a visible discontinuity (face or silhouette boundary).
+- ``edges``: the pixels whose square a visible discontinuity (silhouette, occlusion boundary,
+  crease between faces) crosses, exactly; or from the rasterised face identifiers.
 
 Conventions
 -----------

@@ -207,7 +207,7 @@ def test_exact_intensity_is_the_pixel_area_average(make, layout):
         boxes = [Box3D((0.0, 0.0, 5.0), (1.0, 1.2, 1.4), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)),
                  Box3D((0.8, 0.3, 7.0), (1.0, 1.2, 1.4), (0.9, 0.2, 0.7, 0.4, 0.95, 0.6)),
                  Box3D((-1.5, -0.6, 4.0), (1.0, 1.2, 1.4), (0.9, 0.2, 0.7, 0.4, 0.95, 0.6))]
-    r = make(boxes, trajectory=tr, width=100, height=75, fx=80.0, fy=85.0, cx=49.7, cy=37.2)
+    r = make(boxes, trajectory=tr, width=72, height=54, fx=58.0, fy=61.0, cx=35.7, cy=26.2)
     n = 16
     for t in (0.0, 0.4):
         exact, brute = r.intensity(t), brute_force_intensity(r, t, n)
