@@ -69,7 +69,20 @@ def ref_stripe_dark_fraction(x, y, nx, ny, offset, period, duty):
             total += _interval_overlap(k * period, k * period + duty * period, lo, hi)
         return total / abs(nx)
 
-    val, _ = integrate.quad(dark_length, y - 0.5, y + 0.5, epsabs=1e-13, epsrel=1e-10, limit=200)
+    # the integrand is piecewise linear: break where a pixel corner's u meets a stripe boundary
+    pts = []
+    if abs(ny) > 1e-15:
+        for xc in (x - 0.5, x + 0.5):
+            lo_u = nx * xc + ny * (y - 0.5) - offset
+            hi_u = nx * xc + ny * (y + 0.5) - offset
+            lo_u, hi_u = min(lo_u, hi_u), max(lo_u, hi_u)
+            for k in range(math.floor(lo_u / period) - 1, math.floor(hi_u / period) + 2):
+                for b in (k * period, k * period + duty * period):
+                    yy = (b + offset - nx * xc) / ny
+                    if y - 0.5 < yy < y + 0.5:
+                        pts.append(yy)
+    val, _ = integrate.quad(dark_length, y - 0.5, y + 0.5, points=sorted(pts) or None, epsabs=1e-13,
+                            epsrel=1e-10, limit=200)
     return val
 
 

@@ -171,3 +171,20 @@ def test_nearest_normal_kernel_matches_reference():
         if abs(dc - 2.0) < best[0]:
             best = (abs(dc - 2.0), (p - [5.0, 12.0]) / dc)
         np.testing.assert_allclose([nx[i], ny[i]], best[1], atol=1e-12)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 90.0, 33.0, 200.0])
+def test_rendered_stripes_match_reference(ref, angle_deg):
+    # covers the kernel's fast paths (whole pixel inside one stripe) and the row copy (angle 0)
+    a = math.radians(angle_deg)
+    layer = StripeLayer((1, 7), 5.3, a, (40.0, -10.0), dark=0.1, light=0.9, duty=0.4, phase_px=0.7)
+    r = StripesRenderer(11, 8, [layer], background=0.5)
+    t = 0.013
+    img = r.intensity(t)
+    nx, ny = layer.normal
+    offset = nx * 40.0 * t + ny * -10.0 * t + 0.7
+    assert np.all(img[0] == 0.5) and np.all(img[7] == 0.5)
+    for yy in range(1, 7):
+        for xx in range(11):
+            f = ref.ref_stripe_dark_fraction(xx, yy, nx, ny, offset, 5.3, 0.4)
+            assert img[yy, xx] == pytest.approx(0.9 + f * (0.1 - 0.9), abs=1e-9), (xx, yy)
