@@ -215,11 +215,12 @@ def _params(t: _Table) -> ConverterParams:
     return ConverterParams(**kw)
 
 
-def _stripes(tables: list[_Table], sensor: Sensor):
+def _stripes(top: _Table, sensor: Sensor):
     from .planar import StripeLayer
 
+    tables = top.array_of_tables("stripes")
     if not tables:
-        raise SceneError(f"{tables and tables[0].source}: key 'stripes': at least one [[stripes]] table is required")
+        top.fail("stripes", "at least one [[stripes]] table is required for kind 'stripes'")
     layers = []
     for t in tables:
         rows = t.vector("rows_fraction", 2, (0.0, 1.0))
@@ -249,25 +250,26 @@ def _stripes(tables: list[_Table], sensor: Sensor):
     return tuple(layers)
 
 
-def _shapes(tables: list[_Table]):
+def _shapes(top: _Table):
     from .planar import Circle, Polygon, regular_polygon, star_polygon
 
+    tables = top.array_of_tables("shapes")
     if not tables:
-        raise SceneError("key 'shapes': at least one [[shapes]] table is required for kind 'shapes'")
+        top.fail("shapes", "at least one [[shapes]] table is required for kind 'shapes'")
     out = []
     for t in tables:
         kind = t.string("kind", choices=SHAPE_KINDS)
         value = t.number("intensity", 0.2, lo=0, hi=1)
         if kind == "polygon":
             verts = t.raw("vertices_px")
-            arr = np.asarray(verts, dtype=object)
+            if verts is None:
+                t.fail("vertices_px", "missing (required for kind 'polygon')")
             try:
                 v = np.asarray(verts, dtype=np.float64)
             except (TypeError, ValueError):
                 t.fail("vertices_px", f"expected an array of [x, y] pairs, got {verts!r}")
-            if verts is None or v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3 or not np.all(np.isfinite(v)):
+            if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3 or not np.all(np.isfinite(v)):
                 t.fail("vertices_px", f"expected at least 3 finite [x, y] pairs, got {verts!r}")
-            del arr
             out.append(Polygon(v, value))
             t.finish()
             continue
@@ -368,9 +370,9 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
         sections.append(s)
     motion = None
     if kind == "stripes":
-        objects = _stripes(top.array_of_tables("stripes"), sensor)
+        objects = _stripes(top, sensor)
     elif kind == "shapes":
-        objects = _shapes(top.array_of_tables("shapes"))
+        objects = _shapes(top)
         motion = _motion(top.table("motion"), sensor)
     else:
         objects, motion = _mesh(top)

@@ -73,6 +73,15 @@ CASES = [
     (("shapes",), [{"kind": "circle", "center_px": [1, 2], "radius_px": 2, "intensity": 1.5}],
      "shapes[0].intensity", "must be <= 1"),
     (("motion",), {"frequency_hz": -1}, "motion.frequency_hz", "must be >="),
+    (("shapes",), [], "shapes", "at least one [[shapes]]"),
+    (("shapes",), [{"kind": "polygon", "vertices_px": [[0, 0], [1, 1]]}], "shapes[0].vertices_px",
+     "at least 3 finite"),
+    (("shapes",), [{"kind": "polygon", "vertices_px": [[0, 0], [1], [2, 2]]}], "shapes[0].vertices_px",
+     "expected an array of [x, y] pairs"),
+    (("shapes",), [{"kind": "polygon"}], "shapes[0].vertices_px", "missing"),
+    (("scene", "seed"), 1.5, "scene.seed", "expected an integer"),
+    (("sections",), [{"name": "a", "start_s": 0.05, "end_s": 0.01}], "sections[0].end_s", "must be > start_s"),
+    (("sections",), [{"name": "a", "start_s": 0.0, "end_s": 5.0}], "sections[0].end_s", "must be <= scene.duration_s"),
 ]
 
 
@@ -124,3 +133,14 @@ def test_sensor_presets_and_overrides():
     d["sensor"] = {"width": 64, "height": 48, "fx": 50.0, "cy": 20.0}
     s = parse_scene(d, "a.toml").sensor
     assert (s.fx, s.fy, s.cx, s.cy) == (50.0, 50.0, 31.5, 20.0)
+
+
+def test_analytic_path_never_imports_pyrender(tmp_path):
+    import subprocess
+    import sys
+
+    code = ("import sys; from evedge.sim import simulate; "
+            f"simulate({str(SCENES / 'stripes.toml')!r}, duration_s=0.002, progress=False); "
+            "print('pyrender' in sys.modules, 'OpenGL' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "False"]
