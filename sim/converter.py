@@ -185,8 +185,7 @@ class EventConverter:
         self.cneg = np.maximum(cn, p.min_contrast)
         self._c_min = float(min(self.cpos.min(), self.cneg.min()))
         self.t = 0.0
-        self._i = np.ascontiguousarray(self.renderer.intensity(0.0), dtype=np.float64).ravel()
-        self._log = None
+        self._i = self._render(0.0)
         self._flow = None
         self.lref = np.log(self._i + p.log_eps)
         self.e_hi = np.exp(self.lref + self.cpos)
@@ -206,6 +205,19 @@ class EventConverter:
         self.done = False
 
     # ------------------------------------------------------------------ sampling
+    def _render(self, t_s: float) -> np.ndarray:
+        """The renderer's intensity at ``t_s`` as a flat float64 array, its shape checked.
+
+        The shape check keeps a faulty renderer from indexing out of bounds in
+        the kernels; non-finite or negative values cannot crash them (they
+        compare false and produce no events).
+        """
+        img = np.asarray(self.renderer.intensity(t_s))
+        if img.shape != (self.height, self.width):
+            raise ValueError(f"renderer {type(self.renderer).__name__}.intensity({t_s}) returned shape {img.shape}, "
+                             f"expected ({self.height}, {self.width})")
+        return np.ascontiguousarray(img, dtype=np.float64).ravel()
+
     def _propose(self) -> float:
         p = self.params
         dt = 1.0 / p.min_rate_hz
@@ -226,7 +238,7 @@ class EventConverter:
             if vmax > 0 and grad > 0:
                 dt = max(p.min_step_s, min(dt, limit / (vmax * grad)))
             t1 = min(self.t + dt, self.duration_s)
-            i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()
+            i1 = self._render(t1)
             self._interval(self.t, t1, self._i, i1, self._count(self.t, t1, self._i, i1))
             self.t = t1
             self._i = i1
@@ -234,7 +246,7 @@ class EventConverter:
             return
         while True:
             t1 = min(self.t + dt, self.duration_s)
-            i1 = np.ascontiguousarray(self.renderer.intensity(t1), dtype=np.float64).ravel()
+            i1 = self._render(t1)
             counted = self._count(self.t, t1, self._i, i1)  # also measures max |Delta L|
             dl = counted[3]
             if dl <= limit or (t1 - self.t) <= p.min_step_s * 1.0000001:

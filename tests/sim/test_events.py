@@ -205,3 +205,18 @@ def test_predicted_sampling_also_obeys_count_and_truth(stripes_dict):
     pre = simulate(parse_scene(d, "p.toml"), progress=False, frame_rate_hz=0)
     assert abs(pre.events.shape[0] - ver.events.shape[0]) <= 0.01 * ver.events.shape[0]
     np.testing.assert_allclose(pre.truth["lifetime_us"], 1e6 / 150.0)
+
+
+def test_renderer_with_wrong_shape_is_refused():
+    class Bad(RampRenderer):
+        def intensity(self, t_s):
+            return np.zeros((2, 3))
+
+    with pytest.raises(ValueError, match=r"returned shape \(2, 3\), expected \(1, 1\)"):
+        EventConverter(Bad(0.0, 1.0, 1e-3), ConverterParams(), seed=0, duration_s=0.1)
+    with pytest.raises(TypeError, match="renderer must implement"):
+        EventConverter(object(), ConverterParams(), seed=0, duration_s=0.1)
+    with pytest.raises(ValueError, match="ConverterParams.lambda_"):
+        ConverterParams(lambda_=0.0)
+    with pytest.raises(ValueError, match="ConverterParams.sampling"):
+        ConverterParams(sampling="sometimes")
