@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Box3D", "CameraTrajectory", "MeshRenderer", "FACE_ORDER"]
+__all__ = ["Box3D", "CameraTrajectory", "MeshRenderer", "FACE_ORDER", "rotation_from_rpy"]
 
 #: Order of ``Box3D.face_intensities``: the face whose outward normal is -x, +x, -y, +y, -z, +z
 #: (world frame; -y is the top face, -z the face towards a camera at the origin looking at +z).
@@ -397,7 +397,8 @@ def _merge_collinear(p, q, left, right, tol_px=1e-6):
     n_groups = 0
     for k in range(len(p)):
         if group[k] < 0:
-            same = (group < 0) & (np.abs(unit - unit[k]).max(axis=1) < 1e-9) & (np.abs(offset - offset[k]) < tol_px)
+            same = ((group < 0) & (np.abs(unit - unit[k]).max(axis=1) < 1e-9)
+                    & (np.abs(offset - offset[k]) < tol_px))
             group[same] = n_groups
             n_groups += 1
     out_p, out_q, out_l, out_r = [], [], [], []
@@ -878,8 +879,11 @@ class MeshRenderer:
             last = np.minimum(np.ceil(np.maximum(xa, xb) + 0.5), width - 1).astype(np.int64)
             count = np.maximum(last - first + 1, 0)
             r = np.repeat(np.arange(rows.size), count)
-            cols = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
-            cover = _row_coverage(cols + 0.5, xa[r], xb[r], h[r]) - _row_coverage(cols - 0.5, xa[r], xb[r], h[r])
+            within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+            cols = np.repeat(first, count) + within
+            # area right of the piece inside column ``cols``: strip u < j + .5 minus u < j - .5
+            cover = (_row_coverage(cols + 0.5, xa[r], xb[r], h[r])
+                     - _row_coverage(cols - 0.5, xa[r], xb[r], h[r]))
             np.add.at(acc, (rows[r], cols), jump * cover)
         return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :width]
 

@@ -129,10 +129,11 @@ def test_pose_is_constant_velocity_screw_motion():
 
 def test_rpy_axes():
     # yaw about y: forward (0,0,1) turns towards +x; pitch about x; roll about the optical axis
-    np.testing.assert_allclose(rotation_from_rpy(0, 0, 0.3) @ [0, 0, 1], [math.sin(0.3), 0, math.cos(0.3)], atol=1e-15)
-    np.testing.assert_allclose(rotation_from_rpy(0, 0.3, 0) @ [0, 0, 1], [0, -math.sin(0.3), math.cos(0.3)], atol=1e-15)
+    c, s = math.cos(0.3), math.sin(0.3)
+    np.testing.assert_allclose(rotation_from_rpy(0, 0, 0.3) @ [0, 0, 1], [s, 0, c], atol=1e-15)
+    np.testing.assert_allclose(rotation_from_rpy(0, 0.3, 0) @ [0, 0, 1], [0, -s, c], atol=1e-15)
     np.testing.assert_allclose(rotation_from_rpy(0.3, 0, 0) @ [0, 0, 1], [0, 0, 1], atol=1e-15)
-    np.testing.assert_allclose(rotation_from_rpy(0.3, 0, 0) @ [1, 0, 0], [math.cos(0.3), math.sin(0.3), 0], atol=1e-15)
+    np.testing.assert_allclose(rotation_from_rpy(0.3, 0, 0) @ [1, 0, 0], [c, s, 0], atol=1e-15)
 
 
 # -- intensity and geometry -----------------------------------------------------------------------
