@@ -265,7 +265,10 @@ def _render_disk(out, edge, width, height, cx, cy, r, value, background, edge_to
 
 @njit(cache=True)
 def _render_stripes(out, edge, width, row0, row1, nx, ny, offset, period, duty, dark, light, edge_tol):
-    """Write stripes into rows ``row0 <= y < row1``: ``u = nx x + ny y - offset``, dark where ``u mod period < duty period``."""
+    """Write stripes into rows ``row0 <= y < row1``.
+
+    ``u = nx x + ny y - offset``; dark where ``u mod period < duty period``.
+    """
     for y in range(row0, row1):
         if ny == 0.0 and y > row0:
             # stripes parallel to the y axis: every row equals the first one

@@ -102,7 +102,8 @@ class ConverterParams:
 
     def __post_init__(self) -> None:
         if self.sampling not in ("auto", "verified", "predicted"):
-            raise ValueError(f"ConverterParams.sampling must be 'auto', 'verified' or 'predicted', got {self.sampling!r}")
+            raise ValueError("ConverterParams.sampling must be 'auto', 'verified' or 'predicted', "
+                             f"got {self.sampling!r}")
         for name, value in asdict(self).items():
             if name == "sampling":
                 continue

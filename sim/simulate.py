@@ -7,7 +7,6 @@ import os
 import platform
 import sys
 from dataclasses import asdict, replace
-from pathlib import Path
 
 import numpy as np
 

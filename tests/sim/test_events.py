@@ -77,8 +77,10 @@ def test_convert_kernel_matches_reference(ref, with_refractory, jitter_s):
     jseed = np.uint64(123456789)
     want, wl, wlast, wseq = ref.ref_convert(i0, i1, t0, t1, eps, lref, cpos, cneg, last, refr, seq, jitter_s, jseed)
     state = [lref.copy(), np.exp(lref + cpos), np.exp(lref - cneg), last.copy(), seq.copy()]
-    args = lambda: (i0, i1, t0, t1, eps, state[0], state[1], state[2], cpos, cneg, state[3], refr, state[4],  # noqa: E731
-                    jitter_s, jseed)
+    def args():
+        return (i0, i1, t0, t1, eps, state[0], state[1], state[2], cpos, cneg, state[3], refr, state[4],
+                jitter_s, jseed)
+
     e = np.empty(0)
     cand = np.empty(n, np.int64)
     count, moved, n_cand, dl = _convert(*args(), False, cand, 0, np.empty(0, np.int64), e, e, np.empty(0, bool))
