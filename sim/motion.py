@@ -62,8 +62,22 @@ class PlanarMotion:
     def _phase_rate(self, t):
         return 2.0 * np.pi * (self.frequency_hz + self.chirp_hz_s * t)
 
+    def _state_scalar(self, t: float):
+        # the same formulas in plain floats: the renderer calls this once per sample
+        ph = 2.0 * math.pi * (self.frequency_hz * t + 0.5 * self.chirp_hz_s * t * t)
+        sph = math.sin(ph)
+        cph = math.cos(ph) * 2.0 * math.pi * (self.frequency_hz + self.chirp_hz_s * t)
+        theta = (self.angle_rad + self.angular_velocity_rad_s * t
+                 + 0.5 * self.angular_acceleration_rad_s2 * t * t + self.angle_amplitude_rad * sph)
+        theta_dot = self.angular_velocity_rad_s + self.angular_acceleration_rad_s2 * t + self.angle_amplitude_rad * cph
+        (v0x, v0y), (ax, ay), (amx, amy) = self.velocity_px_s, self.acceleration_px_s2, self.amplitude_px
+        return (theta, theta_dot, v0x * t + 0.5 * ax * t * t + amx * sph, v0y * t + 0.5 * ay * t * t + amy * sph,
+                v0x + ax * t + amx * cph, v0y + ay * t + amy * cph)
+
     def state(self, t):
         """Return ``theta, theta_dot, sx, sy, vx, vy`` at time(s) ``t``."""
+        if isinstance(t, (float, int)):
+            return self._state_scalar(float(t))
         t = np.asarray(t, dtype=np.float64)
         ph = self._phase(t)
         sph = np.sin(ph)

@@ -98,3 +98,18 @@ def test_shapes_simulation_truth_consistent_with_rotation():
     radial = np.stack([ev["x"][near_circle] - 10.0, ev["y"][near_circle] - 14.0], 1).astype(float)
     cosang = np.sum(radial * np.stack([tr["nx"][near_circle], tr["ny"][near_circle]], 1), 1) / np.hypot(*radial.T)
     assert np.all(np.abs(cosang) > 0.8)
+
+
+def test_motion_scalar_and_array_state_agree():
+    m = PlanarMotion(center_px=(3.0, 4.0), velocity_px_s=(5.0, -2.0), acceleration_px_s2=(1.0, 0.5),
+                     amplitude_px=(7.0, 2.0), angle_rad=0.1, angular_velocity_rad_s=0.3,
+                     angular_acceleration_rad_s2=-0.2, angle_amplitude_rad=0.25, frequency_hz=0.7, chirp_hz_s=0.4)
+    ts = np.array([0.0, 0.37, 1.9])
+    arr = m.state(ts)
+    for k, t in enumerate(ts):
+        np.testing.assert_allclose(m.state(float(t)), [a[k] for a in arr], rtol=1e-14, atol=1e-14)
+    # the speed bound holds on a dense grid over the sensor
+    yy, xx = np.mgrid[0:20, 0:30].astype(float)
+    for t in np.linspace(0.0, 2.0, 41):
+        vx, vy = m.flow_at(xx, yy, t)
+        assert np.hypot(vx, vy).max() <= m.max_speed_px_s(t, t, 30, 20) + 1e-9
