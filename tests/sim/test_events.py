@@ -222,3 +222,29 @@ def test_renderer_with_wrong_shape_is_refused():
         ConverterParams(lambda_=0.0)
     with pytest.raises(ValueError, match="ConverterParams.sampling"):
         ConverterParams(sampling="sometimes")
+
+
+def test_jitter_is_a_non_negative_half_normal_latency():
+    class WideRamp(RampRenderer):
+        width = 200
+
+        def intensity(self, t_s):
+            return np.full((1, 200), math.exp(self.l0 + self.k * t_s) - self.eps)
+
+        def flow(self, t_s):
+            return np.zeros((2, 1, 200))
+
+    eps, c, k = 1e-3, 0.2, 8.0
+    params = ConverterParams(contrast_pos=c, contrast_neg=c, log_eps=eps, jitter_us=100.0, min_rate_hz=200.0)
+    ev, _ = EventConverter(WideRamp(math.log(0.2 + eps), k, eps), params, seed=1, duration_s=0.3).process(0.3)
+    n_per_pixel = math.floor(k * 0.3 / c + 1e-9)
+    assert ev.shape[0] <= 200 * n_per_pixel  # a late event may fall after the end and be dropped
+    # the n-th event of each pixel is the n-th crossing, delayed by |N(0, 100 us)|
+    delays = []
+    for x in range(200):
+        t = np.sort(ev["t"][ev["x"] == x])
+        delays.append(t - np.rint(np.arange(1, t.size + 1) * c / k * 1e6))
+    d = np.concatenate(delays)
+    assert d.min() >= -1 and d.size >= 200 * (n_per_pixel - 1)  # the crossings at t = end may drop
+    assert d.mean() == pytest.approx(100.0 * math.sqrt(2 / math.pi), rel=0.05)
+    assert d.std() == pytest.approx(100.0 * math.sqrt(1 - 2 / math.pi), rel=0.08)
