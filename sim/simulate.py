@@ -48,6 +48,14 @@ def _jsonable(value):
     return value
 
 
+def _as_scene(scene) -> Scene:
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, (str, os.PathLike)):
+        return load_scene(scene)
+    raise TypeError(f"scene must be a Scene or a path to a scene file, got {type(scene).__name__}")
+
+
 def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
              frame_rate_hz: float | None = None, progress: bool = True, chunk_s: float = 0.05,
              lambda_: float | None = None) -> Recording:
@@ -81,11 +89,7 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         (bool, at the frame times) and ``metadata`` (scene dict, sections in
         microseconds, seed, parameters, versions, sample counts).
     """
-    if not isinstance(scene, Scene):
-        if isinstance(scene, (str, os.PathLike)):
-            scene = load_scene(scene)
-        else:
-            raise TypeError(f"scene must be a Scene or a path to a scene file, got {type(scene).__name__}")
+    scene = _as_scene(scene)
     if seed is not None:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
@@ -171,18 +175,18 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
     )
 
 
-def render_frame(scene: Scene, t_s: float) -> np.ndarray:
-    """Clean linear intensity (H, W) float64 of ``scene`` at ``t_s``."""
-    r = scene.build_renderer()
+def render_frame(scene, t_s: float) -> np.ndarray:
+    """Clean linear intensity (H, W) float64 of ``scene`` (Scene or file) at ``t_s``."""
+    r = _as_scene(scene).build_renderer()
     try:
         return r.intensity(float(t_s))
     finally:
         r.close()
 
 
-def edge_map(scene: Scene, t_s: float) -> np.ndarray:
-    """Exact edge map (H, W) bool of ``scene`` at ``t_s`` (definition in :mod:`evedge.sim.planar`)."""
-    r = scene.build_renderer()
+def edge_map(scene, t_s: float) -> np.ndarray:
+    """Exact edge map (H, W) bool of ``scene`` (Scene or file) at ``t_s`` (definition in :mod:`evedge.sim.planar`)."""
+    r = _as_scene(scene).build_renderer()
     try:
         return r.edges(float(t_s))
     finally:

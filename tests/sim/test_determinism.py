@@ -46,3 +46,15 @@ def test_recording_contents(stripes_dict):
     assert md["seed"] == 5 and md["scene"]["scene"]["kind"] == "stripes"
     assert {"numpy", "numba", "evedge"} <= set(md["versions"])
     assert md["n_signal"] + md["n_noise"] == rec.events.shape[0]
+
+
+def test_frames_and_edges_match_render_frame_and_edge_map(stripes_dict):
+    from evedge.sim import edge_map, render_frame
+
+    scene = _scene(stripes_dict)
+    rec = simulate(scene, progress=False, frame_rate_hz=50.0)
+    t = rec.frames.t_us[2] / 1e6
+    np.testing.assert_array_equal(rec.frames.images[2], render_frame(scene, t).astype(np.float32))
+    np.testing.assert_array_equal(rec.edges.images[2], edge_map(scene, t))
+    with pytest.raises(TypeError, match="scene must be a Scene"):
+        simulate(42)
