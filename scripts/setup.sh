@@ -20,9 +20,9 @@ if command -v dpkg-query >/dev/null 2>&1; then
 fi
 if [ -n "$missing" ]; then
   cmd="apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends$missing"
-  echo "setup: installing Debian packages for offscreen rendering:$missing"
+  echo "setup: Debian packages for offscreen rendering are missing:$missing"
   if ! as_root "$cmd"; then
-    echo "setup: these Debian packages are missing and I am not root:$missing" >&2
+    echo "setup: cannot install them (not root, no sudo)" >&2
     echo "setup: run as root:  $cmd" >&2
     echo "setup: continuing; 3-D rendering will fail until they are installed." >&2
   fi
