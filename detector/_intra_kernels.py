@@ -246,14 +246,23 @@ def _fit_points(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, s
 
 
 @njit(cache=True)
-def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_us, thr_rel,
-                  max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
+def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, per_pol, half, delta,
+                  thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
                   out_lt, out_vx, out_vy, out_valid):
     """SAE update, window gathering, 2-means and RANSAC for each event in order.
 
     ``sae`` is the flat SAE (``(plane * height + y) * width + x``), updated in place;
     ``g0`` is the global index of the first event (seeds its random stream).
     Flow is written in px/s.
+
+    Burst grouping (``burst > 0``): ``prev_lt`` (float, NaN = none) and ``prev_pol``
+    (int8, -1 = none), laid out as ``sae`` and updated in place, hold the lifetime
+    estimated for the previous event of each pixel and its polarity. An event of
+    the same polarity as its pixel's previous event, with an estimate ``L``, and at
+    most ``burst * L`` after the time the pixel holds, continues that burst: the
+    pixel keeps the burst's first time and the event is fitted at that time (its
+    points are ``dt = t_window - t_burst_start``). Otherwise the pixel takes the
+    event's time (the paper's SAE).
     """
     side = 2 * half + 1
     nn = side * side
@@ -272,7 +281,15 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
         yk = y[k]
         tk = t[k]
         base = (p[k] if per_pol else 0) * height * width
-        sae[base + yk * width + xk] = tk
+        si = base + yk * width + xk
+        pk = np.int8(1) if p[k] else np.int8(0)
+        # prev_lt is NaN when the previous event had no estimate: the comparison is False
+        if burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]:
+            t_ev = tk
+            tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
+        else:
+            t_ev = tk
+            sae[si] = tk
         n = 0
         for oy in range(-half, half + 1):
             yy = yk + oy
@@ -306,6 +323,9 @@ def _intra_stream(x, y, t, p, g0, sae, width, height, per_pol, half, delta, thr_
             out_vx[k] = np.nan
             out_vy[k] = np.nan
             out_valid[k] = False
+        prev_t[si] = t_ev
+        prev_lt[si] = out_lt[k]
+        prev_pol[si] = pk
 
 
 @njit(cache=True)
