@@ -129,38 +129,31 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
         cn = cneg[i]
         last = last_t[i]
         k = seq[i]
-        moved = False
+        # one loop for both polarities: ``lr + step`` is ``lr + cp`` (ON) or
+        # ``lr - cn`` (OFF) to the bit, since a - b == a + (-b) in IEEE arithmetic
         if l1 >= lr + cp:
-            while l1 >= lr + cp:
-                lr += cp
-                moved = True
-                tc = t0 + (lr - l0) / (l1 - l0) * span
-                if tc - last >= refractory_s:
-                    if fill:
-                        out_pix[n] = i
-                        out_t_true[n] = tc
-                        out_t[n] = tc + jitter_s * _half_normal(jitter_seed, i, k) if jitter_s > 0 else tc
-                        out_p[n] = True
-                    n += 1
-                    k += 1
-                    last = tc
+            on = True
+            step = cp
         elif l1 <= lr - cn:
-            while l1 <= lr - cn:
-                lr -= cn
-                moved = True
-                tc = t0 + (lr - l0) / (l1 - l0) * span
-                if tc - last >= refractory_s:
-                    if fill:
-                        out_pix[n] = i
-                        out_t_true[n] = tc
-                        out_t[n] = tc + jitter_s * _half_normal(jitter_seed, i, k) if jitter_s > 0 else tc
-                        out_p[n] = False
-                    n += 1
-                    k += 1
-                    last = tc
-        if moved:
-            n_moved += 1
-        if fill and moved:
+            on = False
+            step = -cn
+        else:
+            continue  # no crossing: reference level unchanged
+        while (l1 >= lr + step) if on else (l1 <= lr + step):
+            lr += step
+            tc = t0 + (lr - l0) / (l1 - l0) * span
+            if tc - last >= refractory_s:
+                if fill:
+                    out_pix[n] = i
+                    out_t_true[n] = tc
+                    out_t[n] = tc + jitter_s * _half_normal(jitter_seed, i, k) if jitter_s > 0 else tc
+                    out_p[n] = on
+                n += 1
+                k += 1
+                last = tc
+        # the loop ran at least once (its first test is the branch test above)
+        n_moved += 1
+        if fill:
             lref[i] = lr
             e_hi[i] = math.exp(lr + cp)
             e_lo[i] = math.exp(lr - cn)
