@@ -9,18 +9,9 @@ from pathlib import Path
 import click
 import numpy as np
 
-from evedge.events import SensorSize
+from evedge._cli_options import sensor_option
 
 _CHUNK = 100_000
-
-
-def _sensor(ctx, param, value):
-    if value is None:
-        return None
-    try:
-        return SensorSize.parse(value)
-    except (ValueError, TypeError) as err:
-        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
 
 
 def _times(ctx, param, value):
@@ -121,7 +112,7 @@ def _write_pngs(folder: Path, times, frames, quiet) -> None:
               help="Time window of --method time.")
 @click.option("--count", "n_events", type=click.IntRange(min=1), default=2000, show_default=True,
               help="Events per frame of --method count.")
-@click.option("--sensor", callback=_sensor, metavar="WxH", help="Sensor size when the file does not say.")
+@sensor_option()
 @click.option("--buffer/--no-buffer", "use_buffer", default=None,
               help="Event-buffer noise filter (default: on for intra, off for mueggler).")
 @click.option("--clear-behind", is_flag=True, help="Clear the pixel behind each event (Mueggler's display).")

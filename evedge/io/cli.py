@@ -6,23 +6,14 @@ import json
 
 import click
 
+from .._cli_options import sensor_option
 from ..events import SensorSize
-
-
-def _sensor(ctx, param, value):
-    if value is None:
-        return None
-    try:
-        return SensorSize.parse(value)
-    except (ValueError, TypeError) as err:
-        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
 
 
 @click.command()
 @click.argument("file", type=click.Path(path_type=str))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-@click.option("--sensor", callback=_sensor, metavar="WxH",
-              help="Sensor size (e.g. 240x180, dvs128) when the file does not say.")
+@sensor_option()
 @click.option("--format", "fmt", type=click.Choice(["ecd", "mat", "hdf5", "aedat4"]),
               help="Skip format detection.")
 @click.option("--sort", is_flag=True, help="Sort events by time (stable) if the file is unsorted.")
