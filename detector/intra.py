@@ -267,11 +267,19 @@ class IntraPixelLifetime:
     sensor_size : SensorSize or (width, height)
     params : IntraParams, optional
 
+    Attributes
+    ----------
+    sae : SurfaceOfActiveEvents
+        The surface the windows are read from. With ``burst_lifetimes > 0`` a
+        pixel holds the time of the first event of its current burst, not of
+        its newest event (module notes).
+
     Notes
     -----
     :meth:`process` returns one :data:`~evedge.detector.result.LIFETIME_DTYPE`
     row per event of the chunk; feeding the events in any chunking gives the
-    same bytes as :func:`estimate_lifetimes`.
+    same bytes as :func:`estimate_lifetimes` (the burst state, each pixel's
+    previous event time, polarity and lifetime, carries across chunks).
     """
 
     def __init__(self, sensor_size, params: IntraParams | None = None) -> None:
@@ -281,7 +289,7 @@ class IntraPixelLifetime:
         self.reset()
 
     def reset(self) -> None:
-        """Clear the SAE and restart the event counter of the random stream."""
+        """Clear the SAE and the burst state; restart the event counter of the random stream."""
         self.sae.reset()
         self._prev_t = np.zeros(self.sae.times_us.size, dtype=np.int64)
         self._prev_lt = np.full(self.sae.times_us.size, np.nan)

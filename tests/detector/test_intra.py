@@ -268,6 +268,10 @@ def test_stream_matches_reference_on_bursts(edge_events, per_polarity):
     assert_lifetimes_close(plain, ref_stream(ev, size, IntraParams(per_polarity=per_polarity, min_inliers=4,
                                                                     min_points=4, burst_lifetimes=0.0)))
     assert got.tobytes() != plain.tobytes()
+    # the burst state carries across chunks
+    est = IntraPixelLifetime(size, params)
+    chunked = np.concatenate([est.process(c) for c in np.array_split(ev, 7)])
+    assert chunked.tobytes() == got.tobytes()
 
 
 # ---- analytic cases --------------------------------------------------------------------------
