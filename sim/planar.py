@@ -77,7 +77,36 @@ def star_polygon(center, radius_px: float, points: int, inner_ratio: float, rota
     return np.stack([center[0] + r * np.cos(a), center[1] + r * np.sin(a)], axis=1)
 
 
-class ShapesRenderer:
+class _CoverageRenderer:
+    """Base of the planar renderers: one coverage pass gives intensity and exact edges together.
+
+    Subclasses set ``width``, ``height``, ``background`` and implement
+    ``_draw(t_s, out, edge)``, which adds the scene into the flat row-major
+    buffers (``out`` starts at the background, ``edge`` all False).
+    """
+
+    width: int
+    height: int
+    background: float
+
+    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _render(self, t_s: float):
+        w, h = self.width, self.height
+        out = np.full(w * h, self.background)
+        edge = np.zeros(w * h, dtype=np.bool_)
+        self._draw(t_s, out, edge)
+        return out.reshape(h, w), edge.reshape(h, w)
+
+    def intensity(self, t_s: float) -> np.ndarray:
+        return self._render(t_s)[0]
+
+    def edges(self, t_s: float) -> np.ndarray:
+        return self._render(t_s)[1]
+
+
+class ShapesRenderer(_CoverageRenderer):
     """Non-overlapping shapes of flat intensity on a flat background, moving rigidly.
 
     Parameters
@@ -125,10 +154,8 @@ class ShapesRenderer:
         self._allx = np.concatenate([self._px, self._cx])
         self._ally = np.concatenate([self._py, self._cy])
 
-    def _render(self, t_s: float):
+    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> None:
         w, h = self.width, self.height
-        out = np.full(w * h, self.background)
-        edge = np.zeros(w * h, dtype=np.bool_)
         # one motion evaluation for all vertices and circle centres
         x, y = self.motion.to_image(self._allx, self._ally, t_s)
         npv = self._px.shape[0]
@@ -142,13 +169,6 @@ class ShapesRenderer:
                              self.background, EDGE_AREA_TOL)
         if self._may_overlap:
             np.clip(out, 0.0, 1.0, out=out)
-        return out.reshape(h, w), edge.reshape(h, w)
-
-    def intensity(self, t_s: float) -> np.ndarray:
-        return self._render(t_s)[0]
-
-    def edges(self, t_s: float) -> np.ndarray:
-        return self._render(t_s)[1]
 
     def flow(self, t_s: float) -> np.ndarray:
         yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
@@ -217,7 +237,7 @@ class StripeLayer:
         return (math.cos(self.angle_rad), math.sin(self.angle_rad))
 
 
-class StripesRenderer:
+class StripesRenderer(_CoverageRenderer):
     """Horizontal bands of moving stripes (one :class:`StripeLayer` per band) over a background."""
 
     def __init__(self, width: int, height: int, layers, background: float = 0.5):
@@ -232,22 +252,13 @@ class StripesRenderer:
                 raise ValueError(f"StripesRenderer: layer {k} rows {layer.rows} overlap another layer")
             self._layer_of_row[r0:r1] = k
 
-    def _render(self, t_s: float):
+    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> None:
         w, h = self.width, self.height
-        out = np.full(w * h, self.background)
-        edge = np.zeros(w * h, dtype=np.bool_)
         for layer in self.layers:
             nx, ny = layer.normal
             offset = nx * layer.velocity_px_s[0] * t_s + ny * layer.velocity_px_s[1] * t_s + layer.phase_px
             _render_stripes(out, edge, w, layer.rows[0], min(layer.rows[1], h), nx, ny, offset,
                             layer.period_px, layer.duty, layer.dark, layer.light, EDGE_AREA_TOL)
-        return out.reshape(h, w), edge.reshape(h, w)
-
-    def intensity(self, t_s: float) -> np.ndarray:
-        return self._render(t_s)[0]
-
-    def edges(self, t_s: float) -> np.ndarray:
-        return self._render(t_s)[1]
 
     def flow(self, t_s: float) -> np.ndarray:
         out = np.zeros((2, self.height, self.width))

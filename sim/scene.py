@@ -54,17 +54,26 @@ class _Table:
     def has(self, name: str) -> bool:
         return name in self.data
 
+    def _lookup(self, name: str, default):
+        """Mark ``name`` read; ``(True, value)`` when present, else ``(False, default)``.
+
+        A ``default`` of None means the key is required: its absence fails.
+        """
+        self.used.add(name)
+        if name in self.data:
+            return True, self.data[name]
+        if default is None:
+            self.fail(name, "missing (required)")
+        return False, default
+
     def raw(self, name: str, default=None):
         self.used.add(name)
         return self.data.get(name, default)
 
     def number(self, name: str, default=None, *, lo=None, hi=None, lo_open=False, integer=False):
-        self.used.add(name)
-        if name not in self.data:
-            if default is None:
-                self.fail(name, "missing (required)")
-            return default
-        v = self.data[name]
+        present, v = self._lookup(name, default)
+        if not present:
+            return v
         ok = (isinstance(v, int) if integer else isinstance(v, (int, float))) and not isinstance(v, bool)
         if not ok:
             self.fail(name, f"expected {'an integer' if integer else 'a number'}, got {v!r}")
@@ -77,12 +86,9 @@ class _Table:
         return int(v) if integer else float(v)
 
     def string(self, name: str, default=None, *, choices=None):
-        self.used.add(name)
-        if name not in self.data:
-            if default is None:
-                self.fail(name, "missing (required)")
-            return default
-        v = self.data[name]
+        present, v = self._lookup(name, default)
+        if not present:
+            return v
         if not isinstance(v, str):
             self.fail(name, f"expected a string, got {v!r}")
         if choices is not None and v not in choices:
@@ -90,12 +96,9 @@ class _Table:
         return v
 
     def vector(self, name: str, length: int, default=None):
-        self.used.add(name)
-        if name not in self.data:
-            if default is None:
-                self.fail(name, "missing (required)")
-            return tuple(default)
-        v = self.data[name]
+        present, v = self._lookup(name, default)
+        if not present:
+            return tuple(v)
         if (not isinstance(v, list) or len(v) != length
                 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) for a in v)):
             self.fail(name, f"expected an array of {length} finite numbers, got {v!r}")

@@ -175,19 +175,20 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
     )
 
 
-def render_frame(scene, t_s: float) -> np.ndarray:
-    """Clean linear intensity (H, W) float64 of ``scene`` (Scene or file) at ``t_s``."""
+def _query_once(scene, query):
+    """``query(renderer)`` on a renderer built for ``scene`` (Scene or file), closed afterwards."""
     r = _as_scene(scene).build_renderer()
     try:
-        return r.intensity(float(t_s))
+        return query(r)
     finally:
         r.close()
+
+
+def render_frame(scene, t_s: float) -> np.ndarray:
+    """Clean linear intensity (H, W) float64 of ``scene`` (Scene or file) at ``t_s``."""
+    return _query_once(scene, lambda r: r.intensity(float(t_s)))
 
 
 def edge_map(scene, t_s: float) -> np.ndarray:
     """Exact edge map (H, W) bool of ``scene`` (Scene or file) at ``t_s`` (definition in :mod:`evedge.sim.planar`)."""
-    r = _as_scene(scene).build_renderer()
-    try:
-        return r.edges(float(t_s))
-    finally:
-        r.close()
+    return _query_once(scene, lambda r: r.edges(float(t_s)))
