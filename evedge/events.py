@@ -119,6 +119,46 @@ def seconds_to_us(t_s) -> np.ndarray:
     return np.rint(t_s * 1e6).astype(np.int64)
 
 
+def find_out_of_sensor(x, y, sensor_size: SensorSize) -> tuple[str, int, int] | None:
+    """The first coordinate outside ``sensor_size``, x checked before y.
+
+    Parameters
+    ----------
+    x, y : array_like of int
+        Pixel columns and rows (event columns, or raw columns before
+        :func:`make_events`).
+    sensor_size : SensorSize
+
+    Returns
+    -------
+    tuple of (str, int, int) or None
+        ``(axis, index, count)``: the axis name (``"x"`` or ``"y"``), the
+        index of its first out-of-range value and how many values of that
+        axis are out of range; None when every coordinate is inside.
+    """
+    for axis, col, limit in (("x", x, sensor_size.width), ("y", y, sensor_size.height)):
+        col = np.asarray(col)
+        bad = np.flatnonzero((col < 0) | (col >= limit))
+        if bad.size:
+            return axis, int(bad[0]), int(bad.size)
+    return None
+
+
+def find_time_decrease(t) -> tuple[int, int] | None:
+    """The first timestamp earlier than the one before it.
+
+    Returns
+    -------
+    tuple of (int, int) or None
+        ``(index, count)``: the index ``i`` of the first ``t[i] < t[i - 1]``
+        and the number of such decreases; None when ``t`` is non-decreasing.
+    """
+    dec = np.flatnonzero(np.diff(np.asarray(t)) < 0)
+    if dec.size:
+        return int(dec[0]) + 1, int(dec.size)
+    return None
+
+
 def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *, name: str = "events") -> np.ndarray:
     """Check an event array and return it unchanged.
 
@@ -138,22 +178,19 @@ def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *
         raise ValueError(f"{name}: expected a 1-D event array, got shape {events.shape}")
     if events.size == 0:
         return events
-    if sensor_size is not None:
-        for axis, limit in (("x", sensor_size.width), ("y", sensor_size.height)):
-            col = events[axis]
-            bad = np.flatnonzero((col < 0) | (col >= limit))
-            if bad.size:
-                i = int(bad[0])
-                raise ValueError(
-                    f"{name}: event {i} has {axis}={int(col[i])} outside the sensor "
-                    f"({sensor_size.width}x{sensor_size.height}); {bad.size} events out of range"
-                )
-    dec = np.flatnonzero(np.diff(events["t"]) < 0)
-    if dec.size:
-        i = int(dec[0]) + 1
+    outside = find_out_of_sensor(events["x"], events["y"], sensor_size) if sensor_size is not None else None
+    if outside is not None:
+        axis, i, count = outside
+        raise ValueError(
+            f"{name}: event {i} has {axis}={int(events[axis][i])} outside the sensor "
+            f"({sensor_size.width}x{sensor_size.height}); {count} events out of range"
+        )
+    decrease = find_time_decrease(events["t"])
+    if decrease is not None:
+        i, count = decrease
         raise ValueError(
             f"{name}: timestamps are not sorted: event {i} has t={int(events['t'][i])} us < "
-            f"t={int(events['t'][i - 1])} us of event {i - 1} ({dec.size} decreases); "
+            f"t={int(events['t'][i - 1])} us of event {i - 1} ({count} decreases); "
             f"use evedge.events.sort_events to sort explicitly"
         )
     return events

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from evedge.events import (
-    EVENT_DTYPE, SENSOR_PRESETS, Frames, Recording, SensorSize, make_events, seconds_to_us, sort_events,
-    validate_events,
+    EVENT_DTYPE, SENSOR_PRESETS, Frames, Recording, SensorSize, find_out_of_sensor, find_time_decrease, make_events,
+    seconds_to_us, sort_events, validate_events,
 )
 
 
@@ -58,6 +58,16 @@ def test_validate_events_range_and_order():
         validate_events(ev)
     with pytest.raises(ValueError, match="1-D"):
         validate_events(ev.reshape(3, 1))
+
+
+def test_find_out_of_sensor_and_time_decrease():
+    size = SensorSize(4, 3)
+    assert find_out_of_sensor([0, 3], [0, 2], size) is None
+    # x before y; the count is of the reported axis; raw columns beyond int16 are fine
+    assert find_out_of_sensor([0, 4, -1, 70000], [5, 0, 0, 0], size) == ("x", 1, 3)
+    assert find_out_of_sensor(np.array([0, 1]), np.array([0, 3]), size) == ("y", 1, 1)
+    assert find_time_decrease([0, 0, 5]) is None and find_time_decrease([]) is None
+    assert find_time_decrease([0, 10, 5, 7, 6]) == (2, 2)
 
 
 def test_sort_events_is_stable():

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..events import SensorSize, make_events, sort_events
+from ..events import SensorSize, find_out_of_sensor, find_time_decrease, make_events, sort_events
 
 
 class EventFileError(ValueError):
@@ -60,27 +60,26 @@ def finish_events(
     sorted_on_load : bool
         True when the events had to be sorted.
     """
-    for axis, limit in (("x", sensor_size.width), ("y", sensor_size.height)):
+    outside = find_out_of_sensor(x, y, sensor_size)
+    if outside is not None:
+        axis, i, count = outside
         col = np.asarray(x if axis == "x" else y)
-        bad = np.flatnonzero((col < 0) | (col >= limit))
-        if bad.size:
-            i = int(bad[0])
-            raise EventFileError(
-                f"{path}: {locate(i)}: {axis}={int(col[i])} is outside the sensor "
-                f"{sensor_size.width}x{sensor_size.height} (size from {size_from}); "
-                f"{bad.size} events out of range. If the size is wrong, pass the right one "
-                f"(sensor_size=..., CLI: --sensor WxH)"
-            )
+        raise EventFileError(
+            f"{path}: {locate(i)}: {axis}={int(col[i])} is outside the sensor "
+            f"{sensor_size.width}x{sensor_size.height} (size from {size_from}); "
+            f"{count} events out of range. If the size is wrong, pass the right one "
+            f"(sensor_size=..., CLI: --sensor WxH)"
+        )
     t_us = np.asarray(t_us)
-    dec = np.flatnonzero(np.diff(t_us) < 0)
+    decrease = find_time_decrease(t_us)
     was_sorted = False
     events = make_events(x, y, t_us, p_on)
-    if dec.size:
-        i = int(dec[0]) + 1
+    if decrease is not None:
+        i, count = decrease
         if not sort:
             raise EventFileError(
                 f"{path}: {locate(i)}: timestamps are not sorted: t={int(t_us[i])} us is earlier "
-                f"than t={int(t_us[i - 1])} us just before it ({dec.size} decreases in the file); "
+                f"than t={int(t_us[i - 1])} us just before it ({count} decreases in the file); "
                 f"pass sort=True to read_events (CLI: --sort) to sort stably by time on load"
             )
         events = sort_events(events)
