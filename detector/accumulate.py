@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evedge.events import SensorSize, validate_events
+from evedge.events import SensorSize, find_time_decrease, validate_events
 
 __all__ = [
     "accumulate_time",
@@ -60,9 +60,9 @@ def _check_times(times_us) -> np.ndarray:
         if arr.dtype.kind != "f" or not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
             raise TypeError(f"times_us must hold integers (microseconds), got dtype {arr.dtype}")
     arr = arr.astype(np.int64)
-    dec = np.flatnonzero(np.diff(arr) < 0)
-    if dec.size:
-        i = int(dec[0]) + 1
+    decrease = find_time_decrease(arr)
+    if decrease is not None:
+        i = decrease[0]
         raise ValueError(f"times_us must be non-decreasing: times_us[{i}]={arr[i]} < times_us[{i - 1}]={arr[i - 1]}")
     return arr
 
@@ -71,6 +71,14 @@ def _check_query_time(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name} must be an integer time in microseconds, got {value!r}")
     return int(value)
+
+
+def _check_one_shot(events, sensor_size, times_us, size_name: str, size) -> tuple[SensorSize, int, np.ndarray]:
+    """Checks shared by the one-shot functions: sensor, events, the window size ``size_name``, query times."""
+    sensor_size = _check_sensor(sensor_size)
+    validate_events(events, sensor_size, name="events")
+    size = _check_positive_int(size_name, size)
+    return sensor_size, size, _check_times(times_us)
 
 
 def accumulate_time(events: np.ndarray, sensor_size: SensorSize, times_us, window_us: int) -> np.ndarray:
@@ -92,10 +100,7 @@ def accumulate_time(events: np.ndarray, sensor_size: SensorSize, times_us, windo
         Boolean, shape ``(n, height, width)``: pixel on at ``T`` when an event
         fell on it with ``T - window_us < t <= T``.
     """
-    sensor_size = _check_sensor(sensor_size)
-    validate_events(events, sensor_size, name="events")
-    window_us = _check_positive_int("window_us", window_us)
-    times = _check_times(times_us)
+    sensor_size, window_us, times = _check_one_shot(events, sensor_size, times_us, "window_us", window_us)
     t = events["t"]
     lo = np.searchsorted(t, times - window_us, side="right")
     hi = np.searchsorted(t, times, side="right")
@@ -122,10 +127,7 @@ def accumulate_count(events: np.ndarray, sensor_size: SensorSize, times_us, n_ev
         last ``n_events`` events with ``t <= T`` fell on it (all of them when
         fewer exist).
     """
-    sensor_size = _check_sensor(sensor_size)
-    validate_events(events, sensor_size, name="events")
-    n_events = _check_positive_int("n_events", n_events)
-    times = _check_times(times_us)
+    sensor_size, n_events, times = _check_one_shot(events, sensor_size, times_us, "n_events", n_events)
     hi = np.searchsorted(events["t"], times, side="right")
     lo = np.maximum(hi - n_events, 0)
     return _images_from_ranges(events, sensor_size, lo, hi)

@@ -51,23 +51,19 @@ def query_times(rng, events):
     return np.sort(np.concatenate([times, times[:3]]))
 
 
-@pytest.mark.parametrize("window_us", [1, 37, 1000, 30_000])
-def test_time_window_matches_brute_force(window_us):
-    rng = np.random.default_rng(window_us)
+@pytest.mark.parametrize(
+    "accumulate, brute, size",
+    [(accumulate_time, brute_time, w) for w in (1, 37, 1000, 30_000)]
+    + [(accumulate_count, brute_count, n) for n in (1, 5, 40, 1000)],
+    ids=[f"time_window_us={w}" for w in (1, 37, 1000, 30_000)] + [f"count_n_events={n}" for n in (1, 5, 40, 1000)],
+)
+def test_matches_brute_force(accumulate, brute, size):
+    rng = np.random.default_rng(size)
     ev = random_events(rng, 300)
     times = query_times(rng, ev)
-    got = accumulate_time(ev, SENSOR, times, window_us)
+    got = accumulate(ev, SENSOR, times, size)
     assert got.shape == (times.size, SENSOR.height, SENSOR.width) and got.dtype == bool
-    np.testing.assert_array_equal(got, brute_time(ev, times, window_us))
-
-
-@pytest.mark.parametrize("n_events", [1, 5, 40, 1000])
-def test_count_window_matches_brute_force(n_events):
-    rng = np.random.default_rng(n_events)
-    ev = random_events(rng, 300)
-    times = query_times(rng, ev)
-    got = accumulate_count(ev, SENSOR, times, n_events)
-    np.testing.assert_array_equal(got, brute_count(ev, times, n_events))
+    np.testing.assert_array_equal(got, brute(ev, times, size))
 
 
 def test_interval_conventions():
