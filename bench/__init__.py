@@ -7,7 +7,10 @@ Modules (imported on use; nothing heavy at import time):
 ``canny``
     Canny ground truth over named parameter settings.
 ``stats``
-    F-measure, relative errors, robust histogram peaks.
+    F-measure, relative errors, robust histogram peaks (plain and shoulder-aware),
+    robust spread of log lifetimes.
+``regions``
+    Speed bands of the stripes recordings, found without a lifetime estimator.
 ``methods``
     Edge maps of the compared methods (proposed, Mueggler, 1 ms, 30 ms, count)
     and the diagnostic variant (Mueggler with a shifted time origin).

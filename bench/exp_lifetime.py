@@ -11,10 +11,26 @@ RANSAC). Datasets:
   gives the median relative lifetime error (events with a valid estimate,
   ``is_signal`` and a finite true lifetime) and the true histogram.
 
-Histogram peaks: :func:`evedge.bench.stats.histogram_peaks` on log10 lifetime
-(the two most prominent peaks; location, basin median and MAD, FWHM in
-decades). Accumulated lifetime image: per pixel, the median of the valid
-lifetimes of its events over the whole sequence.
+Per method and dataset: the share of its input events with an estimate
+(``share_estimated``; the proposed method's input is the event buffer's
+output), on simulated data the median relative error against the truth.
+
+Sharpness, three views (all kept in ``results.json``):
+
+* global histogram peaks: :func:`evedge.bench.stats.histogram_peaks` on log10
+  lifetime (the two most prominent local maxima; location, basin median and
+  MAD, FWHM in decades) -- blind to a peak that is only a shoulder;
+* shoulder-aware global peaks: :func:`evedge.bench.stats.shoulder_peaks`
+  (maxima of the negative curvature of the log histogram);
+* per speed region (``regions``): the rows of each speed band, found without
+  any estimator (:mod:`evedge.bench.regions`: from the model-free neighbour
+  delay on real data, from the truth on simulated data), and per region and
+  method :func:`evedge.bench.stats.log_spread` (MAD of log10 lifetime,
+  IQR / median, share within +-20 % of the region's mode; on simulated data
+  also the median relative error and the share within +-20 % of the truth).
+
+Accumulated lifetime image: per pixel, the median of the valid lifetimes of
+its events over the whole sequence.
 """
 
 from __future__ import annotations
@@ -28,7 +44,8 @@ from ._plot import METHOD_COLOURS, pyplot
 from .exp_real import default_realdata_dir
 from .exp_similarity import simulate_scene
 from .methods import METHOD_LABELS, mueggler_lifetimes, proposed_lifetimes
-from .stats import histogram_peaks, relative_errors
+from .regions import regions_from_delays, regions_from_truth, row_agreement
+from .stats import histogram_peaks, log_spread, relative_errors, shoulder_peaks
 
 LIFETIME_METHODS = ("proposed", "mueggler")
 
@@ -65,9 +82,11 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
     from tqdm.auto import tqdm
 
     truth = _truth_lifetimes(rec)
+    regions = _regions(rec, truth)
     out = {"info": {"n_events": int(rec.events.size), "sensor": [rec.sensor_size.width, rec.sensor_size.height],
                     "has_truth": truth is not None,
-                    "source": str(rec.metadata.get("source", rec.metadata.get("scene", name)))},
+                    "source": str(rec.metadata.get("source", rec.metadata.get("scene", name))),
+                    "regions": regions},
            "methods": {}}
     arrays = {}
     for m in tqdm(LIFETIME_METHODS, desc=f"lifetimes {name}", unit="method", disable=not progress, leave=False):
@@ -77,9 +96,11 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
         valid = np.asarray(lt["valid"], bool) & np.isfinite(lt["lifetime_us"])
         vals = lt["lifetime_us"][valid]
         res = {"n_input_events": int(run.events.size), "n_valid": int(valid.sum()),
+               "share_estimated": float(valid.sum() / max(1, run.events.size)),
                "valid_fraction_of_all_events": float(valid.sum() / max(1, rec.events.size)),
                "median_lifetime_us": float(np.median(vals)) if vals.size else float("nan"),
-               "peaks": histogram_peaks(vals)}
+               "peaks": histogram_peaks(vals), "shoulder_peaks": shoulder_peaks(vals)}
+        tr = None
         if truth is not None:
             tr = truth if run.kept is None else truth[run.kept]
             est = np.where(valid, lt["lifetime_us"], np.nan)
@@ -87,14 +108,86 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
             res["median_rel_error"] = float(np.median(err)) if err.size else float("nan")
             res["mean_rel_error"] = float(np.mean(err)) if err.size else float("nan")
             res["n_with_truth"] = int(err.size)
+            sig = np.isfinite(tr) & (tr > 0)
+            res["share_estimated_signal"] = float((valid & sig).sum() / max(1, sig.sum()))
+        if regions is not None:
+            res["regions"] = region_spreads(run.events, lt, regions, truth=tr)
         out["methods"][m] = res
-        arrays[m] = (vals, lifetime_image(run.events, lt, rec.sensor_size.shape))
+        by_region = {}
+        if regions is not None:
+            y = run.events["y"].astype(np.int64)
+            by_region = {k: lt["lifetime_us"][valid & np.isin(y, np.asarray(r, dtype=np.int64))]
+                         for k, r in regions["rows"].items()}
+        arrays[m] = (vals, lifetime_image(run.events, lt, rec.sensor_size.shape), by_region)
     if truth is not None:
         tv = truth[np.isfinite(truth) & (truth > 0)]
         out["truth"] = {"median_lifetime_us": float(np.median(tv)) if tv.size else float("nan"),
                         "peaks": histogram_peaks(tv), "n": int(tv.size)}
-        arrays["truth"] = (tv, lifetime_image(rec.events, _as_lifetimes(truth), rec.sensor_size.shape))
+        arrays["truth"] = (tv, lifetime_image(rec.events, _as_lifetimes(truth), rec.sensor_size.shape), {})
     return out, arrays
+
+
+def _regions(rec, truth) -> dict | None:
+    """Speed regions: from the truth when there is one (with the data-driven split's agreement), else data."""
+    try:
+        found = regions_from_delays(rec.events, rec.sensor_size)
+    except ValueError:
+        found = None
+    if truth is None:
+        return found
+    try:
+        known = regions_from_truth(rec.events, truth, rec.sensor_size)
+    except ValueError:  # the truth has no bands of rows: no regions, whatever the data-driven split says
+        return None
+    if found is not None:
+        known["data_driven_rows"] = found["rows"]
+        known["data_driven_row_agreement"] = row_agreement(known, found)
+    return known
+
+
+def region_spreads(events: np.ndarray, lifetimes: np.ndarray, regions: dict, *, truth=None,
+                   within: float = 0.2) -> dict:
+    """Per speed region, the spread of one method's valid lifetimes (:func:`log_spread`).
+
+    Parameters
+    ----------
+    events, lifetimes : numpy.ndarray
+        Aligned (the method's input events and its estimates).
+    regions : dict
+        ``{"rows": {name: [row, ...]}, ...}`` (:mod:`evedge.bench.regions`).
+    truth : array_like, optional
+        Per-event true lifetime aligned with ``events`` (NaN for noise): adds
+        ``median_rel_error`` (per event, vs its own truth), ``frac_within_truth``
+        (share within +-``within`` of it) and ``share_estimated_signal``.
+    within : float
+        Half-width of the band around the mode (and the truth), relative.
+
+    Returns
+    -------
+    dict
+        region -> :func:`log_spread` fields plus ``n_events`` (the method's
+        input events in those rows) and ``share_estimated`` (share of them
+        with a valid estimate).
+    """
+    valid = np.asarray(lifetimes["valid"], bool) & np.isfinite(lifetimes["lifetime_us"])
+    y = events["y"].astype(np.int64)
+    out = {}
+    for name, rows in regions["rows"].items():
+        inside = np.isin(y, np.asarray(rows, dtype=np.int64))
+        sel = inside & valid
+        r = log_spread(lifetimes["lifetime_us"][sel], within=within)
+        r["n_events"] = int(inside.sum())
+        r["share_estimated"] = float(sel.sum() / max(1, inside.sum()))
+        if truth is not None:
+            tr = np.asarray(truth, dtype=np.float64)
+            sig = inside & np.isfinite(tr) & (tr > 0)
+            err = relative_errors(np.where(sel, lifetimes["lifetime_us"], np.nan)[sig], tr[sig])
+            r["median_rel_error"] = float(np.median(err)) if err.size else float("nan")
+            r["frac_within_truth"] = float(np.mean(err <= within)) if err.size else float("nan")
+            r["share_estimated_signal"] = float((sel & sig).sum() / max(1, sig.sum()))
+            r["truth_lifetime_us"] = float(np.median(tr[sig])) if sig.any() else float("nan")
+        out[name] = r
+    return out
 
 
 def _as_lifetimes(t: np.ndarray) -> np.ndarray:
@@ -136,7 +229,7 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
     """
     out_dir = Path(out_dir)
     recordings = dict(recordings or {})
-    results, figures, rows, skipped = {}, [], [], {}
+    results, figures, rows, region_rows, skipped = {}, [], [], [], {}
     for name in datasets:
         rec = recordings.get(name)
         if rec is None:
@@ -153,12 +246,23 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
             for k, p in enumerate(r["peaks"]):
                 rows.append([name, m, k, p["mode"], p["median"], p["mad"], p["fwhm_log10"], p["fraction"],
                              r.get("median_rel_error")])
+            for k, p in enumerate(r["shoulder_peaks"]):
+                rows.append([name, m, f"curvature {k} ({p['kind']})", p["mode"], p["median"], None,
+                             p["fwhm_log10"], p["fraction"], r.get("median_rel_error")])
+            for reg, q in (r.get("regions") or {}).items():
+                region_rows.append([name, reg, m, q["n_events"], q["share_estimated"], q["mode"], q["median"],
+                                    q["mad_log10"], q["iqr_over_median"], q["frac_within"],
+                                    q.get("median_rel_error"), q.get("frac_within_truth")])
         if "truth" in res:
             for k, p in enumerate(res["truth"]["peaks"]):
                 rows.append([name, "truth", k, p["mode"], p["median"], p["mad"], p["fwhm_log10"], p["fraction"], None])
     write_csv_atomic(out_dir / "lifetime_peaks.csv",
                      ["dataset", "method", "peak", "mode_us", "median_us", "mad_us", "fwhm_log10", "fraction",
                       "median_rel_error"], rows)
+    write_csv_atomic(out_dir / "lifetime_regions.csv",
+                     ["dataset", "region", "method", "n_events", "share_estimated", "mode_us", "median_us",
+                      "mad_log10", "iqr_over_median", "frac_within_20pct_of_mode", "median_rel_error",
+                      "frac_within_20pct_of_truth"], region_rows)
     # results.json layout: lifetime[dataset][method] (the truth as a pseudo-method)
     flat = {name: dict(res["methods"], **({"truth": res["truth"]} if "truth" in res else {}))
             for name, res in results.items()}
@@ -181,13 +285,21 @@ def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_d
     raise ValueError(f"run_lifetime: unknown dataset {name!r} (stripes_real or stripes_sim)")
 
 
-def _plot(out_dir: Path, name: str, res: dict, arrays: dict) -> list[Path]:
-    plt = pyplot()
+def _log_ms_axis(ax) -> None:
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    ax.set_xscale("log")
+    ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 1e3:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("lifetime (ms)")
+
+
+def plot_histogram(ax, name: str, res: dict, arrays: dict) -> None:
+    """Fig. 5: lifetime histograms of the methods on one axis; global peaks dotted, shoulders dash-dot."""
     keys = list(arrays)
     all_vals = np.concatenate([arrays[k][0] for k in keys if arrays[k][0].size]) if keys else np.zeros(0)
     all_vals = all_vals[all_vals > 0]
-    paths = []
-    fig, ax = plt.subplots(figsize=(7, 3.6))
     if all_vals.size:
         lo, hi = np.quantile(np.log10(all_vals), [0.002, 0.998])
         bins = np.logspace(lo, hi, 100)
@@ -205,31 +317,83 @@ def _plot(out_dir: Path, name: str, res: dict, arrays: dict) -> list[Path]:
                     density=True)
             for p in res["methods"][k]["peaks"]:
                 ax.axvline(p["mode"], color=colour, lw=0.8, ls=":")
-        ax.set_xscale("log")
-        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 1e3:g}"))
-        ax.xaxis.set_minor_formatter(NullFormatter())
-    ax.set_xlabel("lifetime (ms)")
+            for p in res["methods"][k].get("shoulder_peaks", []):
+                if p["kind"] == "shoulder":
+                    ax.axvline(p["mode"], color=colour, lw=0.8, ls="-.")
+        _log_ms_axis(ax)
     ax.set_ylabel("density")
     ax.legend(fontsize=8)
-    ax.set_title(f"{name}: lifetime histogram (dotted: peaks found)")
-    paths.append(save_figure(fig, out_dir / f"lifetime_hist_{name}.png"))
+    ax.set_title(f"{name}: lifetime histogram (dotted: peaks, dash-dot: shoulders)", fontsize=9)
 
-    fig, axes = plt.subplots(1, len(keys), figsize=(3.6 * len(keys), 3.4), squeeze=False)
+
+def plot_images(fig, axes, name: str, arrays: dict, regions: dict | None = None) -> None:
+    """Fig. 4: accumulated lifetime images, one per method (and the truth), one colour scale."""
     from matplotlib.colors import LogNorm
 
+    keys = list(arrays)
     finite = np.concatenate([arrays[k][1][np.isfinite(arrays[k][1])] for k in keys])
     finite = finite[finite > 0]
     vmin, vmax = (np.quantile(finite, [0.02, 0.95]) / 1e3) if finite.size else (0.1, 1.0)
     vmax = max(vmax, vmin * 1.01)
-    for ax, k in zip(axes[0], keys):
+    im = None
+    for ax, k in zip(axes, keys):
         im = ax.imshow(arrays[k][1] / 1e3, cmap="jet", norm=LogNorm(vmin=vmin, vmax=vmax))
         ax.set_title(METHOD_LABELS.get(k, "ground truth"), fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.colorbar(im, ax=axes[0].tolist(), label="median lifetime (ms)", shrink=0.8)
-    fig.suptitle(f"{name}: accumulated lifetime image")
-    paths.append(save_figure(fig, out_dir / f"lifetime_image_{name}.png"))
+        if regions is not None:  # the speed regions' rows, as a strip left of the image
+            for reg, rows in regions["rows"].items():
+                c = "k" if reg == "slow" else "0.6"
+                ax.scatter(np.full(len(rows), -2.5), rows, s=1, marker="s", c=c, clip_on=False)
+    if im is not None:
+        fig.colorbar(im, ax=list(axes), label="median lifetime (ms)", shrink=0.8)
+
+
+def plot_regions(axes, name: str, res: dict, arrays: dict) -> None:
+    """Per speed region, the methods' lifetime histograms with each one's region mode (dotted)."""
+    regions = res["info"].get("regions") or {}
+    for ax, reg in zip(axes, regions.get("rows", {})):
+        vals = [arrays[k][2].get(reg, np.zeros(0)) for k in arrays if k != "truth"]
+        allv = np.concatenate(vals) if vals else np.zeros(0)
+        allv = allv[allv > 0]
+        if allv.size:
+            lo, hi = np.quantile(np.log10(allv), [0.005, 0.995])
+            bins = np.logspace(lo, hi, 80)
+            for k in arrays:
+                if k == "truth":
+                    continue
+                q = res["methods"][k]["regions"][reg]
+                colour = METHOD_COLOURS.get(k, "k")
+                ax.hist(arrays[k][2][reg], bins=bins, histtype="step", lw=1.5, color=colour, density=True,
+                        label=f"{METHOD_LABELS.get(k, k)}: MAD {q['mad_log10']:.3f} dec, "
+                              f"{100 * q['frac_within']:.0f}% in +-20%")
+                ax.axvline(q["mode"], color=colour, lw=0.8, ls=":")
+            tl = (regions.get("truth_lifetime_us") or {}).get(reg)
+            if tl:
+                ax.axvline(tl, color="k", lw=1.5, ls="--", label="true lifetime")
+            _log_ms_axis(ax)
+        n_rows = len(regions["rows"][reg])
+        ax.set_title(f"{name}, {reg} region ({n_rows} rows)", fontsize=9)
+        ax.legend(fontsize=7)
+
+
+def _plot(out_dir: Path, name: str, res: dict, arrays: dict, *, dpi: int = 110) -> list[Path]:
+    plt = pyplot()
+    paths = []
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    plot_histogram(ax, name, res, arrays)
+    paths.append(save_figure(fig, out_dir / f"lifetime_hist_{name}.png", dpi=dpi))
+
+    keys = list(arrays)
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.6 * len(keys), 3.4), squeeze=False)
+    plot_images(fig, axes[0], name, arrays, res["info"].get("regions"))
+    fig.suptitle(f"{name}: accumulated lifetime image (left strip: rows of the slow/fast region, black/grey)",
+                 fontsize=9)
+    paths.append(save_figure(fig, out_dir / f"lifetime_image_{name}.png", dpi=dpi))
+
+    if res["info"].get("regions"):
+        n = len(res["info"]["regions"]["rows"])
+        fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 3.4), squeeze=False)
+        plot_regions(axes[0], name, res, arrays)
+        paths.append(save_figure(fig, out_dir / f"lifetime_regions_{name}.png", dpi=dpi))
     return paths

@@ -26,6 +26,7 @@ td.l,th.l{text-align:left}
 img{max-width:100%;border:1px solid #eee;margin:0.3em 0}
 pre{background:#f7f7f7;padding:0.5em;font-size:0.8em;overflow-x:auto}
 .small{font-size:0.85em;color:#555}
+.row{display:flex;gap:0.5em;align-items:flex-start} .row>div{flex:1 1 0;min-width:0}
 """
 
 
@@ -91,6 +92,30 @@ def _fmeasure_section(fm: dict) -> str:
     return "".join(parts)
 
 
+def _lifetime_figures(paths: list) -> str:
+    """Per dataset: the histogram (fig. 5) and the accumulated lifetime images (fig. 4) side by side,
+    then the per-region histograms; other figures after."""
+    paths = [Path(p) for p in paths]
+    by_ds: dict[str, dict[str, Path]] = {}
+    rest = []
+    for p in paths:
+        for kind in ("hist", "image", "regions"):
+            prefix = f"lifetime_{kind}_"
+            if p.stem.startswith(prefix):
+                by_ds.setdefault(p.stem[len(prefix):], {})[kind] = p
+                break
+        else:
+            rest.append(p)
+    parts = []
+    for ds, figs in by_ds.items():
+        pair = [figs[k] for k in ("hist", "image") if k in figs]
+        parts.append(f"<h3>{_e(ds)}</h3><div class='row'>"
+                     + "".join(f"<div>{_img(p)}</div>" for p in pair) + "</div>")
+        if "regions" in figs:
+            parts.append(_img(figs["regions"]))
+    return "".join(parts) + "".join(_img(p) for p in rest)
+
+
 def _lifetime_section(lt: dict, datasets: dict) -> str:
     rows = []
     for ds, per in lt.items():
@@ -98,14 +123,52 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
             peaks = res.get("peaks") or []
             ptxt = "; ".join(f"{p['mode'] / 1e3:.2f} ms (median {p['median'] / 1e3:.2f}, MAD {p['mad'] / 1e3:.2f} ms, "
                              f"FWHM {p['fwhm_log10']:.3f} dec, {100 * p['fraction']:.0f}%)" for p in peaks)
+            stxt = "; ".join(f"{p['mode'] / 1e3:.2f} ms {p['kind']} (FWHM-eq {p['fwhm_log10']:.3f} dec, "
+                             f"{100 * p['fraction']:.0f}%)" for p in res.get("shoulder_peaks") or [])
+            share = res.get("share_estimated")
             rows.append([_e(ds), _e(METHOD_LABELS.get(m, m)), _num(res.get("median_lifetime_us", np.nan) / 1e3
                                                                   if res.get("median_lifetime_us") is not None
                                                                   else None, 2),
-                         _num(res.get("median_rel_error"), 3), _e(res.get("n_valid", res.get("n", ""))), _e(ptxt)])
-    info = "".join(f"<li>{_e(ds)}: {_e(d)}</li>" for ds, d in datasets.items())
-    return (f"<ul class='small'>{info}</ul>"
-            + _table(["dataset", "method", "median lifetime (ms)", "median rel. error", "n valid",
-                      "histogram peaks (log10 lifetime)"], rows, left_cols=2))
+                         _num(None if share is None else 100 * share, 1),
+                         _num(res.get("median_rel_error"), 3), _e(res.get("n_valid", res.get("n", ""))), _e(ptxt),
+                         _e(stxt)])
+    info_items = []
+    for ds, d in datasets.items():
+        d = dict(d)
+        reg = d.pop("regions", None)
+        txt = f"{_e(ds)}: {_e(d)}"
+        if reg:
+            spans = ", ".join(f"{k}: rows {v[0]}-{v[-1]} ({len(v)})" if v else f"{k}: none"
+                              for k, v in reg["rows"].items())
+            txt += f"<br>speed regions ({_e(reg.get('method', ''))}): {_e(spans)}"
+            if reg.get("truth_lifetime_us"):
+                txt += "; true lifetimes " + _e(", ".join(f"{k} {v / 1e3:.2f} ms"
+                                                          for k, v in reg["truth_lifetime_us"].items()))
+            if reg.get("data_driven_row_agreement") is not None:
+                txt += (f"; the estimator-free split (used on real data) labels "
+                        f"{_num(100 * reg['data_driven_row_agreement'], 1)}% of the rows as the truth does")
+        info_items.append(f"<li>{txt}</li>")
+    out = (f"<ul class='small'>{''.join(info_items)}</ul>"
+           + _table(["dataset", "method", "median lifetime (ms)", "% of input events estimated",
+                     "median rel. error", "n valid", "histogram peaks (log10 lifetime)",
+                     "shoulder-aware components"], rows, left_cols=2))
+    rrows = []
+    for ds, per in lt.items():
+        for m, res in per.items():
+            for reg, q in (res.get("regions") or {}).items():
+                rrows.append([_e(ds), _e(reg), _e(METHOD_LABELS.get(m, m)), _e(q["n_events"]),
+                              _num(100 * q["share_estimated"], 1), _num(q["mode"] / 1e3 if q["n"] else None, 2),
+                              _num(q["median"] / 1e3 if q["n"] else None, 2), _num(q["mad_log10"], 4),
+                              _num(q["iqr_over_median"], 3), _num(100 * q["frac_within"], 1),
+                              _num(q.get("median_rel_error"), 3),
+                              _num(None if q.get("frac_within_truth") is None else 100 * q["frac_within_truth"], 1)])
+    if rrows:
+        out += ("<p class='small'>Per speed region (the rows of one band; the verdict's measure is the MAD of "
+                "log10 lifetime):</p>"
+                + _table(["dataset", "region", "method", "events", "% estimated", "mode (ms)", "median (ms)",
+                          "MAD log10 (dec)", "IQR / median", "% within 20% of mode", "median rel. error",
+                          "% within 20% of truth"], rrows, left_cols=3))
+    return out
 
 
 def _cdm_section(cdm: dict) -> str:
@@ -208,7 +271,7 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
         h.append(_fmeasure_section(results["fmeasure"]))
     if results.get("lifetime"):
         h += ["<h2>2. Lifetimes on stripes (paper figs. 4-5)</h2>"]
-        h += [_img(p) for p in figures.get("lifetime", [])]
+        h.append(_lifetime_figures(figures.get("lifetime", [])))
         h.append(_lifetime_section(results["lifetime"], results.get("lifetime_datasets", {})))
     if results.get("cdm"):
         h += ["<h2>3. Similarity over time, slow then fast (paper fig. 9)</h2>"]

@@ -85,3 +85,46 @@ def moving_edge():
 @pytest.fixture(scope="session")
 def realdata_dir():
     return REALDATA
+
+
+#: Two bands of rows moving along +x at different speeds (a tiny stripes recording).
+BAND_SPEEDS_PX_S = {"slow": 100.0, "fast": 250.0}
+BAND_ROWS = {"slow": range(0, 8), "fast": range(8, 16)}
+
+
+def make_two_band_recording(width=48, period_px=12, end_us=400_000):
+    """Stripes of period ``period_px`` moving along +x: rows 0-7 at 100 px/s, rows 8-15 at 250 px/s.
+
+    Each pixel fires one event each time a stripe boundary crosses its centre:
+    ON at a dark-to-light boundary, OFF at the other (half a period later).
+    Truth: lifetime 1/v (10 ms and 4 ms), ``is_signal`` True.
+    """
+    xs, ys, ts, ps, lts = [], [], [], [], []
+    for band, rows in BAND_ROWS.items():
+        v = BAND_SPEEDS_PX_S[band]
+        for x in range(width):
+            c = x + 0.5
+            # boundaries at positions k * period/2 + v t; they cross c at t = (c - k * period / 2) / v
+            for k in range(-int(v * end_us / 1e6 / (period_px / 2)) - 2, int(width / (period_px / 2)) + 2):
+                t = (c - k * period_px / 2) / v * 1e6
+                if 0 <= t <= end_us:
+                    for y in rows:
+                        xs.append(x)
+                        ys.append(y)
+                        ts.append(int(round(t)))
+                        ps.append(k % 2 == 0)
+                        lts.append(1e6 / v)
+    order = np.lexsort((np.asarray(xs), np.asarray(ys), np.asarray(ts)))
+    events = make_events(np.asarray(xs)[order], np.asarray(ys)[order], np.asarray(ts)[order],
+                         np.asarray(ps)[order])
+    truth = np.zeros(events.size, dtype=[("lifetime_us", "f8"), ("vx_px_s", "f8"), ("vy_px_s", "f8"),
+                                         ("is_signal", "?")])
+    truth["lifetime_us"] = np.asarray(lts)[order]
+    truth["vx_px_s"] = 1e6 / truth["lifetime_us"]
+    truth["is_signal"] = True
+    return Recording(events, SensorSize(width, 16), truth=truth, metadata={"scene": "test_two_bands"})
+
+
+@pytest.fixture(scope="session")
+def two_bands():
+    return make_two_band_recording()

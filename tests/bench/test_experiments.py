@@ -126,3 +126,36 @@ def test_qualitative_panel(similarity, tmp_path):
     assert (tmp_path / "qualitative.png").stat().st_size > 0
     with pytest.raises(ValueError, match="no rows"):
         run_qualitative(tmp_path, rows=[])
+
+
+def test_lifetime_experiment_per_speed_region(two_bands, tmp_path):
+    res = run_lifetime(tmp_path, recordings={"stripes_sim": two_bands}, datasets=("stripes_sim",),
+                       progress=False)
+    reg = res["datasets"]["stripes_sim"]["regions"]
+    # with truth the regions come from it; the estimator-free split agrees on every row
+    assert reg["rows"] == {"slow": list(range(8)), "fast": list(range(8, 16))}
+    assert reg["truth_lifetime_us"] == {"slow": 10_000.0, "fast": 4_000.0}
+    assert reg["data_driven_row_agreement"] == 1.0
+    keys = {"n", "median", "mode", "mad_log10", "iqr_over_median", "frac_within", "n_events",
+            "share_estimated", "median_rel_error", "frac_within_truth", "share_estimated_signal",
+            "truth_lifetime_us"}
+    for m in ("proposed", "mueggler"):
+        r = res["lifetime"]["stripes_sim"][m]
+        assert 0 < r["share_estimated"] <= 1 and 0 <= r["median_rel_error"] < 1
+        assert isinstance(r["shoulder_peaks"], list)
+        assert set(r["regions"]) == {"slow", "fast"}
+        for name, q in r["regions"].items():
+            assert keys <= set(q), name
+            assert q["n_events"] > 0 and 0 < q["share_estimated"] <= 1
+            assert q["truth_lifetime_us"] == reg["truth_lifetime_us"][name]
+    # exact, noise-free stripes: the proposed lifetimes are the truth in each band
+    prop = res["lifetime"]["stripes_sim"]["proposed"]["regions"]
+    assert prop["slow"]["median"] == pytest.approx(10_000, rel=0.01)
+    assert prop["fast"]["median"] == pytest.approx(4_000, rel=0.01)
+    assert prop["fast"]["median_rel_error"] < 0.01
+    for name in ("lifetime_regions.csv", "lifetime_regions_stripes_sim.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    header = (tmp_path / "lifetime_regions.csv").read_text().splitlines()[0]
+    assert header.startswith("dataset,region,method") and "mad_log10" in header
+    data = json.loads((tmp_path / "lifetime.json").read_text())
+    assert data["lifetime"]["stripes_sim"]["proposed"]["regions"]["slow"]["mad_log10"] is not None

@@ -34,7 +34,10 @@ def test_results_json_has_the_keys(tiny_run):
         assert key in data, key
     assert set(data["fmeasure"]) == {"global", "scattered"}
     assert "intra_delta_0.25" in data["fmeasure"]["global"]
-    assert "median_rel_error" in data["lifetime"]["stripes_sim"]["proposed"]
+    for m in ("proposed", "mueggler"):
+        lt = data["lifetime"]["stripes_sim"][m]
+        assert "median_rel_error" in lt and 0 < lt["share_estimated"] <= 1
+        assert "shoulder_peaks" in lt
     scene = next(iter(data["cdm"]))
     assert set(data["cdm"][scene]["exact"]["proposed"]) >= {"slow", "fast"}
     rec = next(iter(data["real"]))

@@ -51,3 +51,62 @@ def test_histogram_peaks_single_mode_and_tiny_input():
     assert len(peaks) == 1
     assert peaks[0]["fraction"] == 1.0
     assert histogram_peaks([1.0, 2.0]) == []
+
+
+def test_log_spread_known_answers():
+    from evedge.bench.stats import log_spread
+
+    s = log_spread([100.0, 200.0, 300.0, 400.0, 500.0], mode=300.0, within=0.25, truth=250.0)
+    assert s["n"] == 5 and s["median"] == 300.0 and s["mode"] == 300.0
+    assert s["iqr_over_median"] == pytest.approx(200.0 / 300.0)       # q25 200, q75 400
+    assert s["frac_within"] == pytest.approx(1 / 5)                   # only 300 within 300 +- 25 %
+    assert s["median_rel_error"] == pytest.approx(0.6)                # |v - 250| / 250 = .6 .2 .2 .6 1
+    assert s["frac_within_truth"] == pytest.approx(2 / 5)
+    assert s["mad_log10"] == pytest.approx(np.median(np.abs(np.log10([1, 2, 3, 4, 5]) - np.log10(3))))
+    const = log_spread(np.full(50, 7000.0))
+    assert const["mad_log10"] == 0.0 and const["iqr_over_median"] == 0.0 and const["frac_within"] == 1.0
+    # log-normal: MAD of log10 = 0.6745 sigma; the share within +-20 % of the mode
+    # is P(log10 0.8 <= log10 v - mu <= log10 1.2)
+    rng = np.random.default_rng(2)
+    sigma = 0.05
+    ln = log_spread(10 ** rng.normal(4.0, sigma, 40000))
+    assert ln["mad_log10"] == pytest.approx(0.6745 * sigma, rel=0.03)
+    assert ln["mode"] == pytest.approx(1e4, rel=0.02)
+    from scipy.stats import norm
+
+    expect = norm.cdf(np.log10(1.2) / sigma) - norm.cdf(np.log10(0.8) / sigma)
+    assert ln["frac_within"] == pytest.approx(expect, abs=0.02)
+    empty = log_spread([np.nan, -1.0], truth=5.0)
+    assert empty["n"] == 0 and np.isnan(empty["mad_log10"]) and np.isnan(empty["median_rel_error"])
+    with pytest.raises(ValueError, match="within"):
+        log_spread([1.0], within=0.0)
+
+
+def test_shoulder_peaks_sees_a_shoulder_the_peak_finder_misses():
+    from evedge.bench.stats import shoulder_peaks
+
+    rng = np.random.default_rng(0)
+    # a large component at 10^3.8 and a smaller one at 10^4.05 that is only a shoulder
+    v = np.concatenate([10 ** rng.normal(3.8, 0.08, 24000), 10 ** rng.normal(4.05, 0.06, 6000)])
+    assert len(histogram_peaks(v)) == 1
+    comp = shoulder_peaks(v)
+    assert len(comp) == 2
+    assert [c["kind"] for c in comp] == ["peak", "shoulder"]
+    assert np.log10(comp[0]["mode"]) == pytest.approx(3.8, abs=0.04)
+    assert np.log10(comp[1]["mode"]) == pytest.approx(4.05, abs=0.04)
+    assert comp[0]["fraction"] == pytest.approx(0.8, abs=0.06)
+
+
+def test_shoulder_peaks_on_separate_modes_and_tiny_input():
+    from evedge.bench.stats import shoulder_peaks
+
+    rng = np.random.default_rng(0)
+    v = np.concatenate([10 ** rng.normal(3.0, 0.05, 20000), 10 ** rng.normal(4.0, 0.10, 10000)])
+    comp = shoulder_peaks(v)
+    assert [c["kind"] for c in comp] == ["peak", "peak"]
+    assert comp[0]["median"] == pytest.approx(1000, rel=0.03)
+    assert comp[1]["median"] == pytest.approx(10000, rel=0.05)
+    # well-separated Gaussians: MAD of each component = 0.6745 sigma, FWHM-equivalent 2.355 sigma
+    assert comp[0]["mad_log10"] == pytest.approx(0.6745 * 0.05, rel=0.1)
+    assert comp[1]["fwhm_log10"] == pytest.approx(2.355 * 0.10, rel=0.1)
+    assert shoulder_peaks([1.0, 2.0]) == []

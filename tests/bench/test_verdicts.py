@@ -81,3 +81,45 @@ def test_intra_verdict_says_when_the_truth_definition_reverses_it():
     assert v[0]["status"] == "holds" and "NOT ROBUST" in v[0]["evidence"]
     sens = {"truth_tol_0.1px": {"global": {"no_intra": [1.0, 0.5], "intra_delta_0.25": [1.0, 0.6]}}}
     assert "NOT ROBUST" not in intra_verdicts({"global": _fm(0.5, 0.7, 0.2, 0.2)}, sens)[0]["evidence"]
+
+
+def _reg(mad, frac, iqr, err=None, share=0.9):
+    r = {"n": 100, "mode": 5000.0, "median": 5000.0, "mad_log10": mad, "iqr_over_median": iqr,
+         "frac_within": frac, "share_estimated": share, "n_events": 110}
+    if err is not None:
+        r.update(median_rel_error=err, frac_within_truth=frac)
+    return r
+
+
+def _lt_regions(prop, mueg):
+    # a single global peak for the proposed method: the old rule would compare one FWHM
+    return {"d": {"proposed": {"peaks": [{"fwhm_log10": 0.3, "mode": 5000.0}], "regions": prop},
+                  "mueggler": {"peaks": [{"fwhm_log10": 0.1, "mode": 5000.0}], "regions": mueg}}}
+
+
+def test_lifetime_verdict_uses_the_region_spread_not_the_global_peaks():
+    lt = _lt_regions({"slow": _reg(0.04, 0.7, 0.2), "fast": _reg(0.05, 0.6, 0.3)},
+                     {"slow": _reg(0.06, 0.6, 0.3), "fast": _reg(0.09, 0.5, 0.4)})
+    v = lifetime_verdicts(lt, {"d": {"regions": {"method": "my split"}}})[0]
+    assert v["status"] == "holds"               # global FWHM says otherwise (0.3 > 0.1): not the measure
+    assert v["detail"]["measure"] == "region_mad_log10"
+    assert "my split" in v["evidence"] and "Global view (not used" in v["evidence"]
+    assert "disagree" not in v["evidence"]
+    # sharper in one region only -> fails
+    lt["d"]["proposed"]["regions"]["fast"]["mad_log10"] = 0.1
+    v = lifetime_verdicts(lt)[0]
+    assert v["status"] == "fails"
+    # a secondary measure that disagrees is named
+    lt = _lt_regions({"slow": _reg(0.04, 0.5, 0.2)}, {"slow": _reg(0.06, 0.6, 0.3)})
+    v = lifetime_verdicts(lt)[0]
+    assert v["status"] == "holds" and "within +-20% of the mode in the slow region" in v["evidence"]
+    assert v["detail"]["secondary_disagree"] == ["share within +-20% of the mode in the slow region"]
+
+
+def test_lifetime_verdict_with_truth_needs_lower_error_in_every_region():
+    lt = _lt_regions({"slow": _reg(0.01, 0.9, 0.04, err=0.02), "fast": _reg(0.01, 0.9, 0.04, err=0.02)},
+                     {"slow": _reg(0.02, 0.9, 0.1, err=0.05), "fast": _reg(0.02, 0.9, 0.1, err=0.07)})
+    v = lifetime_verdicts(lt)[0]
+    assert v["status"] == "holds" and "lower error vs truth" in v["claim"]
+    lt["d"]["proposed"]["regions"]["fast"]["median_rel_error"] = 0.08
+    assert lifetime_verdicts(lt)[0]["status"] == "fails"
