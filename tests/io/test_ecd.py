@@ -36,39 +36,29 @@ def test_comments_and_blank_lines_are_skipped_and_lines_still_counted(tmp_path):
     assert read_ecd(path, sensor_size=SIZE).events["x"].tolist() == [1, 3]
 
 
-def test_malformed_token_names_line_and_column(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1\n0.3 1 abc 0\n")
-    with pytest.raises(EventFileError, match=r"line 3: column 'y' is not a number: 'abc'"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_non_numeric_time_names_line(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\nt=0.2 1 2 1\n")
-    with pytest.raises(EventFileError, match=r"line 2: column 't' is not a number"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_nan_and_inf_name_line(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\n0.2 inf 2 1\n")
-    with pytest.raises(EventFileError, match=r"line 2: column 'x' is inf \(not finite\)"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_wrong_column_count_on_one_line(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1 7\n0.3 1 2 1\n")
-    with pytest.raises(EventFileError, match=r"line 2: expected 4 columns 't x y p', found 5"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_wrong_column_count_on_every_line(tmp_path):
-    path = _write(tmp_path, "1 0.1 1 2 0\n2 0.2 1 2 1\n")
-    with pytest.raises(EventFileError, match=r"line 1: expected 4 columns 't x y p', found 5"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_truncated_last_line_is_an_error_not_dropped(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 1\n0.3 17")
-    with pytest.raises(EventFileError, match=r"line 3 \(the last line, no newline at the end: is the file truncated\?\)"):
+@pytest.mark.parametrize("content, message", [
+    pytest.param("0.1 1 2 0\n0.2 1 2 1\n0.3 1 abc 0\n", r"line 3: column 'y' is not a number: 'abc'",
+                 id="malformed_token_names_line_and_column"),
+    pytest.param("0.1 1 2 0\nt=0.2 1 2 1\n", r"line 2: column 't' is not a number", id="non_numeric_time"),
+    pytest.param("0.1 1 2 0\n0.2 inf 2 1\n", r"line 2: column 'x' is inf \(not finite\)", id="inf"),
+    pytest.param("0.1 1 2 0\n0.2 1 2 1 7\n0.3 1 2 1\n", r"line 2: expected 4 columns 't x y p', found 5",
+                 id="wrong_column_count_on_one_line"),
+    pytest.param("1 0.1 1 2 0\n2 0.2 1 2 1\n", r"line 1: expected 4 columns 't x y p', found 5",
+                 id="wrong_column_count_on_every_line"),
+    pytest.param("0.1 1 2 0\n0.2 1 2 1\n0.3 17",
+                 r"line 3 \(the last line, no newline at the end: is the file truncated\?\)",
+                 id="truncated_last_line_is_an_error_not_dropped"),
+    pytest.param("0.1 1 2 0\n0.2 240 2 1\n", r"line 2: x=240 is outside the sensor 240x180 \(size from option\)",
+                 id="x_out_of_range"),
+    pytest.param("0.1 1 2 0\n0.2 1 -1 1\n", r"line 2: y=-1 is outside", id="y_out_of_range"),
+    pytest.param("0.1 1 2 0\n0.2 1 2 -1\n", r"line 2: polarity p=-1, expected 0 or 1", id="polarity_not_0_or_1"),
+    pytest.param("0.1 1.5 2 0\n", r"line 1: x=1.5 is not an integer", id="fractional_coordinate"),
+    pytest.param(b"0.1 1 2 0\n0.2 \xff 2 1\n", r"line 2: column 'x' is not a number", id="non_utf8_bytes"),
+])
+def test_bad_line_is_an_error_naming_the_line(tmp_path, content, message):
+    path = tmp_path / "events.txt"
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    with pytest.raises(EventFileError, match=message):
         read_ecd(path, sensor_size=SIZE)
 
 
@@ -84,34 +74,6 @@ def test_unsorted_names_line_and_sort_option_sorts_stably(tmp_path):
     rec = read_events(path, sensor_size=SIZE, sort=True)
     assert rec.events["x"].tolist() == [1, 3, 4, 2]  # equal times keep file order
     assert rec.metadata["sorted_on_load"] is True
-
-
-def test_out_of_range_coordinate_names_line(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\n0.2 240 2 1\n")
-    with pytest.raises(EventFileError, match=r"line 2: x=240 is outside the sensor 240x180 \(size from option\)"):
-        read_ecd(path, sensor_size=SIZE)
-    path.write_text("0.1 1 2 0\n0.2 1 -1 1\n")
-    with pytest.raises(EventFileError, match=r"line 2: y=-1 is outside"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_polarity_must_be_zero_or_one(tmp_path):
-    path = _write(tmp_path, "0.1 1 2 0\n0.2 1 2 -1\n")
-    with pytest.raises(EventFileError, match=r"line 2: polarity p=-1, expected 0 or 1"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_fractional_coordinate_is_an_error(tmp_path):
-    path = _write(tmp_path, "0.1 1.5 2 0\n")
-    with pytest.raises(EventFileError, match=r"line 1: x=1.5 is not an integer"):
-        read_ecd(path, sensor_size=SIZE)
-
-
-def test_non_utf8_bytes_name_the_line(tmp_path):
-    path = tmp_path / "events.txt"
-    path.write_bytes(b"0.1 1 2 0\n0.2 \xff 2 1\n")
-    with pytest.raises(EventFileError, match=r"line 2: column 'x' is not a number"):
-        read_ecd(path, sensor_size=SIZE)
 
 
 @pytest.mark.parametrize("text", ["", "# only a comment\n\n"])

@@ -87,13 +87,6 @@ def test_unsorted_names_row_and_sort_option(tmp_path):
     assert rec.events["x"].tolist() == [3, 5, 0, 127]
 
 
-def test_not_a_mat_file(tmp_path):
-    path = tmp_path / "bad.mat"
-    path.write_bytes(b"this is not matlab data at all" * 10)
-    with pytest.raises(EventFileError, match=r"bad\.mat: not a readable MATLAB \.mat file"):
-        read_events(path)
-
-
 def test_empty_matrix_gives_zero_events(tmp_path):
     rec = read_mat(_save(tmp_path, events=np.zeros((0, 4), dtype=np.int32)))
     assert rec.events.size == 0

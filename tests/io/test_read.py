@@ -39,6 +39,18 @@ def test_sensor_size_type_is_checked(tmp_path):
         read_events(path, sensor_size=(240, 180))
 
 
+@pytest.mark.parametrize("name, garbage, message", [
+    ("bad.h5", b"not hdf5" * 100, r"bad\.h5: not a readable HDF5 file"),
+    ("bad.mat", b"this is not matlab data at all" * 10, r"bad\.mat: not a readable MATLAB \.mat file"),
+    ("bad.aedat4", b"garbage", r"bad\.aedat4: not a readable AEDAT4 file"),
+])
+def test_garbage_with_a_known_extension_names_the_format(tmp_path, name, garbage, message):
+    path = tmp_path / name
+    path.write_bytes(garbage)
+    with pytest.raises(EventFileError, match=message):
+        read_events(path)
+
+
 def test_hdf5_detected_by_magic_bytes(tmp_path, small_recording):
     path = write_recording(tmp_path / "rec.data", small_recording())
     assert detect_format(path) == "hdf5"
