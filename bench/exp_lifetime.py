@@ -29,6 +29,10 @@ Sharpness, three views (all kept in ``results.json``):
   IQR / median, share within +-20 % of the region's mode; on simulated data
   also the median relative error and the share within +-20 % of the truth).
 
+Diagnostic (``mueggler.on_buffered_events``, never in a verdict): Mueggler's
+region spreads on the proposed method's input (the event buffer's output), to
+separate the estimator from the buffer.
+
 Accumulated lifetime image: per pixel, the median of the valid lifetimes of
 its events over the whole sequence.
 """
@@ -89,6 +93,7 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
                     "regions": regions},
            "methods": {}}
     arrays = {}
+    kept = None
     for m in tqdm(LIFETIME_METHODS, desc=f"lifetimes {name}", unit="method", disable=not progress, leave=False):
         run = proposed_lifetimes(rec.events, rec.sensor_size) if m == "proposed" else \
             mueggler_lifetimes(rec.events, rec.sensor_size)
@@ -112,6 +117,17 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
             res["share_estimated_signal"] = float((valid & sig).sum() / max(1, sig.sum()))
         if regions is not None:
             res["regions"] = region_spreads(run.events, lt, regions, truth=tr)
+        if m == "proposed":
+            kept = run.kept
+        elif m == "mueggler" and regions is not None and kept is not None:
+            # diagnostic: Mueggler on the proposed method's input (after the event buffer), so that
+            # the region spreads can be compared on the same events; never used in a verdict
+            sub = mueggler_lifetimes(rec.events[kept], rec.sensor_size)
+            sub_valid = np.asarray(sub.lifetimes["valid"], bool) & np.isfinite(sub.lifetimes["lifetime_us"])
+            res["on_buffered_events"] = {
+                "share_estimated": float(sub_valid.sum() / max(1, sub.events.size)),
+                "regions": region_spreads(sub.events, sub.lifetimes, regions,
+                                          truth=None if truth is None else truth[kept])}
         out["methods"][m] = res
         by_region = {}
         if regions is not None:

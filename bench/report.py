@@ -154,14 +154,19 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
                      "shoulder-aware components"], rows, left_cols=2))
     rrows = []
     for ds, per in lt.items():
+        items = []
         for m, res in per.items():
-            for reg, q in (res.get("regions") or {}).items():
-                rrows.append([_e(ds), _e(reg), _e(METHOD_LABELS.get(m, m)), _e(q["n_events"]),
-                              _num(100 * q["share_estimated"], 1), _num(q["mode"] / 1e3 if q["n"] else None, 2),
-                              _num(q["median"] / 1e3 if q["n"] else None, 2), _num(q["mad_log10"], 4),
-                              _num(q["iqr_over_median"], 3), _num(100 * q["frac_within"], 1),
-                              _num(q.get("median_rel_error"), 3),
-                              _num(None if q.get("frac_within_truth") is None else 100 * q["frac_within_truth"], 1)])
+            items += [(reg, METHOD_LABELS.get(m, m), q) for reg, q in (res.get("regions") or {}).items()]
+            diag = (res.get("on_buffered_events") or {}).get("regions") or {}
+            items += [(reg, f"{METHOD_LABELS.get(m, m)} on the event buffer's output (diagnostic)", q)
+                      for reg, q in diag.items()]
+        for reg, label, q in items:
+            rrows.append([_e(ds), _e(reg), _e(label), _e(q["n_events"]),
+                          _num(100 * q["share_estimated"], 1), _num(q["mode"] / 1e3 if q["n"] else None, 2),
+                          _num(q["median"] / 1e3 if q["n"] else None, 2), _num(q["mad_log10"], 4),
+                          _num(q["iqr_over_median"], 3), _num(100 * q["frac_within"], 1),
+                          _num(q.get("median_rel_error"), 3),
+                          _num(None if q.get("frac_within_truth") is None else 100 * q["frac_within_truth"], 1)])
     if rrows:
         out += ("<p class='small'>Per speed region (the rows of one band; the verdict's measure is the MAD of "
                 "log10 lifetime):</p>"

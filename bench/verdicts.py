@@ -296,6 +296,11 @@ def lifetime_verdicts(lifetime: dict, datasets: dict | None = None) -> list[dict
                         f"{_fmt(100 * a['frac_within_truth'], 1)}% vs {_fmt(100 * b['frac_within_truth'], 1)}%")
                 holds = holds and bool(ea < eb)
             parts.append(txt)
+        buffered = (per["mueggler"].get("on_buffered_events") or {}).get("regions") or {}
+        if buffered:
+            parts.append("diagnostic, Mueggler on the event buffer's output (the proposed method's input): "
+                         + ", ".join(f"{r} MAD log10 {_fmt(buffered[r]['mad_log10'], 4)}" for r in names
+                                     if r in buffered))
         ev = (f"measure: MAD of log10 lifetime per speed region (smaller in every region"
               f"{'; and lower median relative error vs truth in every region' if reg_err else ''}); regions: "
               f"{src or 'see lifetime_datasets'}. " + "; ".join(parts))

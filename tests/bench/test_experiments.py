@@ -153,6 +153,8 @@ def test_lifetime_experiment_per_speed_region(two_bands, tmp_path):
     assert prop["slow"]["median"] == pytest.approx(10_000, rel=0.01)
     assert prop["fast"]["median"] == pytest.approx(4_000, rel=0.01)
     assert prop["fast"]["median_rel_error"] < 0.01
+    diag = res["lifetime"]["stripes_sim"]["mueggler"]["on_buffered_events"]
+    assert set(diag["regions"]) == {"slow", "fast"} and 0 < diag["share_estimated"] <= 1
     for name in ("lifetime_regions.csv", "lifetime_regions_stripes_sim.png"):
         assert (tmp_path / name).stat().st_size > 0
     header = (tmp_path / "lifetime_regions.csv").read_text().splitlines()[0]

@@ -101,7 +101,7 @@ def test_lifetime_verdict_uses_the_region_spread_not_the_global_peaks():
     lt = _lt_regions({"slow": _reg(0.04, 0.7, 0.2), "fast": _reg(0.05, 0.6, 0.3)},
                      {"slow": _reg(0.06, 0.6, 0.3), "fast": _reg(0.09, 0.5, 0.4)})
     v = lifetime_verdicts(lt, {"d": {"regions": {"method": "my split"}}})[0]
-    assert v["status"] == "holds"               # global FWHM says otherwise (0.3 > 0.1): not the measure
+    assert v["status"] == "holds"  # global FWHM says otherwise (0.3 > 0.1): not the measure
     assert v["detail"]["measure"] == "region_mad_log10"
     assert "my split" in v["evidence"] and "Global view (not used" in v["evidence"]
     assert "disagree" not in v["evidence"]
