@@ -70,27 +70,20 @@ def format_summary(info: dict[str, Any]) -> str:
     def rate(value) -> str:
         return "n/a" if value is None else f"{value:,.0f} ev/s"
 
-    lines = [("file", f"{info['source']} ({info['format']})"), ("events", f"{info['events']:,}")]
-    if info["events"]:
-        lines.append((
-            "duration",
-            f"{info['duration_s']:.6f} s (t = {info['t_first_us'] / 1e6:.6f} .. {info['t_last_us'] / 1e6:.6f} s)",
-        ))
-    else:
-        lines.append(("duration", "n/a (no events)"))
-    lines += [
+    has_events = bool(info["events"])
+    no_events = "n/a (no events)"
+    lines = [
+        ("file", f"{info['source']} ({info['format']})"),
+        ("events", f"{info['events']:,}"),
+        ("duration",
+         f"{info['duration_s']:.6f} s (t = {info['t_first_us'] / 1e6:.6f} .. {info['t_last_us'] / 1e6:.6f} s)"
+         if has_events else no_events),
         ("sensor", f"{info['sensor_width']}x{info['sensor_height']} (from {info['sensor_size_from']})"),
         ("mean rate", rate(info["mean_rate_ev_s"])),
-        ("peak rate", rate(info["peak_rate_10ms_ev_s"] if info["events"] else None) + " (10 ms window)"),
-    ]
-    if info["events"]:
-        lines.append((
-            "polarity",
-            f"ON {100 * info['on_fraction']:.1f} % ({info['on_count']:,} ON / {info['off_count']:,} OFF)",
-        ))
-    else:
-        lines.append(("polarity", "n/a (no events)"))
-    lines += [
+        ("peak rate", rate(info["peak_rate_10ms_ev_s"] if has_events else None) + " (10 ms window)"),
+        ("polarity",
+         f"ON {100 * info['on_fraction']:.1f} % ({info['on_count']:,} ON / {info['off_count']:,} OFF)"
+         if has_events else no_events),
         ("frames", str(info["frames"])),
         ("edge maps", str(info["edges"])),
         ("truth", ", ".join(info["truth_fields"]) or "none"),
