@@ -183,7 +183,10 @@ def region_spreads(events: np.ndarray, lifetimes: np.ndarray, regions: dict, *, 
     dict
         region -> :func:`log_spread` fields plus ``n_events`` (the method's
         input events in those rows) and ``share_estimated`` (share of them
-        with a valid estimate).
+        with a valid estimate), ``frac_of_events_within`` (share of *all* those
+        events with an estimate within +-``within`` of the mode: a missing
+        estimate counts as a miss); with truth also ``frac_of_signal_within_truth``
+        (the same against each event's truth, over all signal events).
     """
     valid = np.asarray(lifetimes["valid"], bool) & np.isfinite(lifetimes["lifetime_us"])
     y = events["y"].astype(np.int64)
@@ -194,12 +197,16 @@ def region_spreads(events: np.ndarray, lifetimes: np.ndarray, regions: dict, *, 
         r = log_spread(lifetimes["lifetime_us"][sel], within=within)
         r["n_events"] = int(inside.sum())
         r["share_estimated"] = float(sel.sum() / max(1, inside.sum()))
+        # coverage-aware: an event without an estimate counts as a miss
+        r["frac_of_events_within"] = (float(r["frac_within"] * sel.sum() / inside.sum())
+                                      if inside.any() and r["n"] else float("nan"))
         if truth is not None:
             tr = np.asarray(truth, dtype=np.float64)
             sig = inside & np.isfinite(tr) & (tr > 0)
             err = relative_errors(np.where(sel, lifetimes["lifetime_us"], np.nan)[sig], tr[sig])
             r["median_rel_error"] = float(np.median(err)) if err.size else float("nan")
             r["frac_within_truth"] = float(np.mean(err <= within)) if err.size else float("nan")
+            r["frac_of_signal_within_truth"] = float(np.sum(err <= within) / max(1, sig.sum()))
             r["share_estimated_signal"] = float((sel & sig).sum() / max(1, sig.sum()))
             r["truth_lifetime_us"] = float(np.median(tr[sig])) if sig.any() else float("nan")
         out[name] = r

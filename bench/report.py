@@ -44,6 +44,10 @@ def _num(x, nd=2) -> str:
     return "n/a" if not np.isfinite(v) else f"{v:.{nd}f}"
 
 
+def _pct(x) -> str:
+    return _num(None if x is None else 100 * float(x), 1)
+
+
 def _img(path) -> str:
     p = Path(path)
     if not p.exists():
@@ -165,14 +169,15 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
                           _num(100 * q["share_estimated"], 1), _num(q["mode"] / 1e3 if q["n"] else None, 2),
                           _num(q["median"] / 1e3 if q["n"] else None, 2), _num(q["mad_log10"], 4),
                           _num(q["iqr_over_median"], 3), _num(100 * q["frac_within"], 1),
-                          _num(q.get("median_rel_error"), 3),
-                          _num(None if q.get("frac_within_truth") is None else 100 * q["frac_within_truth"], 1)])
+                          _pct(q.get("frac_of_events_within")), _num(q.get("median_rel_error"), 3),
+                          _pct(q.get("frac_within_truth")), _pct(q.get("frac_of_signal_within_truth"))])
     if rrows:
         out += ("<p class='small'>Per speed region (the rows of one band; the verdict's measure is the MAD of "
                 "log10 lifetime):</p>"
                 + _table(["dataset", "region", "method", "events", "% estimated", "mode (ms)", "median (ms)",
-                          "MAD log10 (dec)", "IQR / median", "% within 20% of mode", "median rel. error",
-                          "% within 20% of truth"], rrows, left_cols=3))
+                          "MAD log10 (dec)", "IQR / median", "% within 20% of mode",
+                          "same, % of all events", "median rel. error", "% within 20% of truth",
+                          "same, % of all signal events"], rrows, left_cols=3))
     return out
 
 

@@ -283,6 +283,9 @@ def lifetime_verdicts(lifetime: dict, datasets: dict | None = None) -> list[dict
             txt = (f"{r} region: MAD log10 proposed {_fmt(a['mad_log10'], 4)} vs Mueggler {_fmt(b['mad_log10'], 4)} "
                    f"dec; IQR/median {_fmt(a['iqr_over_median'], 3)} vs {_fmt(b['iqr_over_median'], 3)}; "
                    f"within +-20% of the mode {_fmt(100 * a['frac_within'], 1)}% vs {_fmt(100 * b['frac_within'], 1)}%"
+                   f" (of all events, a missing estimate a miss: "
+                   f"{_fmt(100 * a.get('frac_of_events_within', np.nan), 1)}% vs "
+                   f"{_fmt(100 * b.get('frac_of_events_within', np.nan), 1)}%)"
                    f"; mode {_fmt(a['mode'] / 1e3, 2)} vs {_fmt(b['mode'] / 1e3, 2)} ms; estimated "
                    f"{_fmt(100 * a['share_estimated'], 0)}% vs {_fmt(100 * b['share_estimated'], 0)}% of events")
             if (a["iqr_over_median"] < b["iqr_over_median"]) != sharper:
@@ -293,7 +296,9 @@ def lifetime_verdicts(lifetime: dict, datasets: dict | None = None) -> list[dict
                 ea, eb = a["median_rel_error"], b["median_rel_error"]
                 spread[r]["median_rel_error"] = {"proposed": ea, "mueggler": eb}
                 txt += (f"; median rel. error vs truth {_fmt(ea, 3)} vs {_fmt(eb, 3)}, within +-20% of truth "
-                        f"{_fmt(100 * a['frac_within_truth'], 1)}% vs {_fmt(100 * b['frac_within_truth'], 1)}%")
+                        f"{_fmt(100 * a['frac_within_truth'], 1)}% vs {_fmt(100 * b['frac_within_truth'], 1)}% "
+                        f"(of all signal events: {_fmt(100 * a.get('frac_of_signal_within_truth', np.nan), 1)}% vs "
+                        f"{_fmt(100 * b.get('frac_of_signal_within_truth', np.nan), 1)}%)")
                 holds = holds and bool(ea < eb)
             parts.append(txt)
         buffered = (per["mueggler"].get("on_buffered_events") or {}).get("regions") or {}

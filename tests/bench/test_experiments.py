@@ -138,7 +138,7 @@ def test_lifetime_experiment_per_speed_region(two_bands, tmp_path):
     assert reg["data_driven_row_agreement"] == 1.0
     keys = {"n", "median", "mode", "mad_log10", "iqr_over_median", "frac_within", "n_events",
             "share_estimated", "median_rel_error", "frac_within_truth", "share_estimated_signal",
-            "truth_lifetime_us"}
+            "truth_lifetime_us", "frac_of_events_within", "frac_of_signal_within_truth"}
     for m in ("proposed", "mueggler"):
         r = res["lifetime"]["stripes_sim"][m]
         assert 0 < r["share_estimated"] <= 1 and 0 <= r["median_rel_error"] < 1
@@ -153,6 +153,9 @@ def test_lifetime_experiment_per_speed_region(two_bands, tmp_path):
     assert prop["slow"]["median"] == pytest.approx(10_000, rel=0.01)
     assert prop["fast"]["median"] == pytest.approx(4_000, rel=0.01)
     assert prop["fast"]["median_rel_error"] < 0.01
+    for q in prop.values():  # the coverage-aware share is the plain share times the share estimated
+        assert q["frac_of_events_within"] == pytest.approx(q["frac_within"] * q["n"] / q["n_events"])
+        assert q["frac_of_signal_within_truth"] <= q["frac_within_truth"] + 1e-12
     diag = res["lifetime"]["stripes_sim"]["mueggler"]["on_buffered_events"]
     assert set(diag["regions"]) == {"slow", "fast"} and 0 < diag["share_estimated"] <= 1
     for name in ("lifetime_regions.csv", "lifetime_regions_stripes_sim.png"):
