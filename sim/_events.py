@@ -33,17 +33,24 @@ def _half_normal(seed, a, b):
 
 
 @njit(cache=True)
+def _widen_ratio(r, a, b):
+    """``max(r, a / b, b / a)`` for positive ``a``, ``b`` and ``r >= 1``.
+
+    Compares by multiplication and divides only when the maximum grows.
+    """
+    if a > r * b:
+        return a / b
+    if b > r * a:
+        return b / a
+    return r
+
+
+@njit(cache=True)
 def _max_log_change(i0, i1, eps):
     """max over pixels of |log(i1 + eps) - log(i0 + eps)| (one log, not one per pixel)."""
     r = 1.0
     for i in range(i0.shape[0]):
-        a = i0[i] + eps
-        b = i1[i] + eps
-        # compare by multiplication, divide only when the maximum grows
-        if a > r * b:
-            r = a / b
-        elif b > r * a:
-            r = b / a
+        r = _widen_ratio(r, i0[i] + eps, i1[i] + eps)
     return math.log(r)
 
 
@@ -102,11 +109,7 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
             continue
         a = i1[i] + eps
         if not fill:
-            b = i0[i] + eps
-            if a > ratio * b:
-                ratio = a / b
-            elif b > ratio * a:
-                ratio = b / a
+            ratio = _widen_ratio(ratio, a, i0[i] + eps)
         # conservative pre-test; the decision itself is made on logarithms below
         if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
             continue
