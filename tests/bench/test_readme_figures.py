@@ -64,3 +64,4 @@ def test_missing_inputs_are_named(script, tmp_path):
     assert set(missing) == {"lifetime_hist_stripes_real.png", "ransac_fmeasure.png"}
     assert len(written) == len(script.OUTPUTS) - 2
     assert script.main(["--from-run", str(run), "--out", str(tmp_path / "img2")]) == 1
+
