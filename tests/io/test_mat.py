@@ -41,40 +41,29 @@ def test_integral_doubles_are_accepted(tmp_path):
     assert rec.events["t"].tolist() == [0, 10, 10, 25]
 
 
-def test_missing_variable_lists_the_variables(tmp_path):
-    with pytest.raises(EventFileError, match=r"ev\.mat: no variable 'events' \(variables: ev, other\)"):
-        read_mat(_save(tmp_path, ev=_matrix(), other=np.zeros(2)))
+def _edited(row, col, value, dtype=np.int32):
+    m = _matrix().astype(dtype)
+    m[row, col] = value
+    return m
 
 
-def test_wrong_shape(tmp_path):
-    with pytest.raises(EventFileError, match=r"variable 'events' has shape \(4, 3\), expected N x 4"):
-        read_mat(_save(tmp_path, events=_matrix()[:, :3]))
-
-
-def test_non_integer_value_names_row_and_column(tmp_path):
-    m = _matrix().astype(np.float64)
-    m[2, 3] = 10.5
-    with pytest.raises(EventFileError, match=r"variable 'events' row 2 \(0-based\): column 't' = 10.5 is not an integer"):
-        read_mat(_save(tmp_path, events=m))
-
-
-def test_non_numeric_dtype(tmp_path):
-    with pytest.raises(EventFileError, match="expected integers"):
-        read_mat(_save(tmp_path, events=np.array([["a", "b", "c", "d"]])))
-
-
-def test_polarity_outside_plus_minus_one(tmp_path):
-    m = _matrix()
-    m[1, 2] = 0
-    with pytest.raises(EventFileError, match=r"row 1 \(0-based\): polarity 0, expected -1 or \+1"):
-        read_mat(_save(tmp_path, events=m))
-
-
-def test_out_of_range_names_row(tmp_path):
-    m = _matrix()
-    m[3, 0] = 128
-    with pytest.raises(EventFileError, match=r"row 3 \(0-based\): x=128 is outside the sensor 128x128 \(size from dvs128 \.mat convention\)"):
-        read_mat(_save(tmp_path, events=m))
+@pytest.mark.parametrize("variables, message", [
+    pytest.param({"ev": _matrix(), "other": np.zeros(2)}, r"ev\.mat: no variable 'events' \(variables: ev, other\)",
+                 id="missing_variable_lists_the_variables"),
+    pytest.param({"events": _matrix()[:, :3]}, r"variable 'events' has shape \(4, 3\), expected N x 4", id="wrong_shape"),
+    pytest.param({"events": _edited(2, 3, 10.5, np.float64)},
+                 r"variable 'events' row 2 \(0-based\): column 't' = 10.5 is not an integer",
+                 id="non_integer_value_names_row_and_column"),
+    pytest.param({"events": np.array([["a", "b", "c", "d"]])}, "expected integers", id="non_numeric_dtype"),
+    pytest.param({"events": _edited(1, 2, 0)}, r"row 1 \(0-based\): polarity 0, expected -1 or \+1",
+                 id="polarity_outside_plus_minus_one"),
+    pytest.param({"events": _edited(3, 0, 128)},
+                 r"row 3 \(0-based\): x=128 is outside the sensor 128x128 \(size from dvs128 \.mat convention\)",
+                 id="out_of_range_names_row"),
+])
+def test_bad_content_is_an_error_naming_the_place(tmp_path, variables, message):
+    with pytest.raises(EventFileError, match=message):
+        read_mat(_save(tmp_path, **variables))
 
 
 def test_unsorted_names_row_and_sort_option(tmp_path):
