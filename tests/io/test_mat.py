@@ -50,7 +50,8 @@ def _edited(row, col, value, dtype=np.int32):
 @pytest.mark.parametrize("variables, message", [
     pytest.param({"ev": _matrix(), "other": np.zeros(2)}, r"ev\.mat: no variable 'events' \(variables: ev, other\)",
                  id="missing_variable_lists_the_variables"),
-    pytest.param({"events": _matrix()[:, :3]}, r"variable 'events' has shape \(4, 3\), expected N x 4", id="wrong_shape"),
+    pytest.param({"events": _matrix()[:, :3]}, r"variable 'events' has shape \(4, 3\), expected N x 4",
+                 id="wrong_shape"),
     pytest.param({"events": _edited(2, 3, 10.5, np.float64)},
                  r"variable 'events' row 2 \(0-based\): column 't' = 10.5 is not an integer",
                  id="non_integer_value_names_row_and_column"),
