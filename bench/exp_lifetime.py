@@ -29,6 +29,9 @@ Sharpness, three views (all kept in ``results.json``):
   IQR / median, share within +-20 % of the region's mode; on simulated data
   also the median relative error and the share within +-20 % of the truth).
 
+Sensitivity (``regions_core``): the same spreads without the 4 rows at each
+end of each band, so that a verdict resting on where a band ends shows.
+
 Diagnostic (``mueggler.on_buffered_events``, never in a verdict): Mueggler's
 region spreads on the proposed method's input (the event buffer's output), to
 separate the estimator from the buffer.
@@ -117,6 +120,8 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
             res["share_estimated_signal"] = float((valid & sig).sum() / max(1, sig.sum()))
         if regions is not None:
             res["regions"] = region_spreads(run.events, lt, regions, truth=tr)
+            # sensitivity to where the bands end: the same without CORE_MARGIN_ROWS rows at each end
+            res["regions_core"] = region_spreads(run.events, lt, core_regions(regions), truth=tr)
         if m == "proposed":
             kept = run.kept
         elif m == "mueggler" and regions is not None and kept is not None:
@@ -141,6 +146,19 @@ def analyse_dataset(name: str, rec, *, progress: bool = False) -> dict:
                         "peaks": histogram_peaks(tv), "n": int(tv.size)}
         arrays["truth"] = (tv, lifetime_image(rec.events, _as_lifetimes(truth), rec.sensor_size.shape), {})
     return out, arrays
+
+
+#: Rows dropped at each end of a band for the boundary-sensitivity check (``regions_core``).
+CORE_MARGIN_ROWS = 4
+
+
+def core_regions(regions: dict, margin: int = CORE_MARGIN_ROWS) -> dict:
+    """The regions without ``margin`` rows at each end of each band (a band too thin keeps its middle row)."""
+    rows = {}
+    for k, r in regions["rows"].items():
+        r = list(r)
+        rows[k] = r[margin:len(r) - margin] if len(r) > 2 * margin else r[len(r) // 2:len(r) // 2 + 1]
+    return {"method": f"{regions.get('method', '')}; without {margin} rows at each end", "rows": rows}
 
 
 def _regions(rec, truth) -> dict | None:

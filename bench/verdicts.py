@@ -271,12 +271,13 @@ def lifetime_verdicts(lifetime: dict, datasets: dict | None = None) -> list[dict
         reg_err = all(regs[r].get("median_rel_error") is not None and regs_m[r].get("median_rel_error") is not None
                       and np.isfinite(regs[r]["median_rel_error"]) and np.isfinite(regs_m[r]["median_rel_error"])
                       for r in names)
-        holds, parts, disagree = True, [], []
+        holds, mad_holds, parts, disagree = True, True, [], []
         spread = {r: {} for r in names}
         for r in names:
             a, b = regs[r], regs_m[r]
             sharper = bool(a["mad_log10"] < b["mad_log10"])
             holds = holds and sharper
+            mad_holds = mad_holds and sharper
             spread[r] = {"mad_log10": {"proposed": a["mad_log10"], "mueggler": b["mad_log10"]},
                          "iqr_over_median": {"proposed": a["iqr_over_median"], "mueggler": b["iqr_over_median"]},
                          "frac_within": {"proposed": a["frac_within"], "mueggler": b["frac_within"]}}
@@ -301,6 +302,14 @@ def lifetime_verdicts(lifetime: dict, datasets: dict | None = None) -> list[dict
                         f"{_fmt(100 * b.get('frac_of_signal_within_truth', np.nan), 1)}%)")
                 holds = holds and bool(ea < eb)
             parts.append(txt)
+        core, core_m = per["proposed"].get("regions_core") or {}, per["mueggler"].get("regions_core") or {}
+        if all(r in core and r in core_m for r in names):
+            core_holds = all(core[r]["mad_log10"] < core_m[r]["mad_log10"] for r in names)
+            parts.append("without the 4 rows at each end of each band: MAD log10 " + ", ".join(
+                f"{r} {_fmt(core[r]['mad_log10'], 4)} vs {_fmt(core_m[r]['mad_log10'], 4)}" for r in names)
+                + (" (same MAD outcome)" if core_holds == mad_holds
+                   else " (the MAD comparison differs: the outcome depends on where the bands end)"))
+            detail["core_mad_holds"] = core_holds
         buffered = (per["mueggler"].get("on_buffered_events") or {}).get("regions") or {}
         if buffered:
             parts.append("diagnostic, Mueggler on the event buffer's output (the proposed method's input): "

@@ -90,3 +90,13 @@ def test_no_bands_no_regions(moving_edge, two_bands):
         regions_from_delays(two_bands.events, two_bands.sensor_size, min_ratio=3.0)
     with pytest.raises(ValueError, match="equal"):
         regions_from_truth(moving_edge.events, moving_edge.truth["lifetime_us"], moving_edge.sensor_size)
+
+
+def test_core_regions_drop_the_band_ends():
+    from evedge.bench.exp_lifetime import core_regions
+
+    reg = {"method": "m", "rows": {"slow": list(range(0, 20)), "fast": list(range(20, 25))}}
+    core = core_regions(reg, margin=4)
+    assert core["rows"]["slow"] == list(range(4, 16))
+    assert core["rows"]["fast"] == [22]  # too thin for the margin: its middle row
+    assert "without 4 rows" in core["method"]

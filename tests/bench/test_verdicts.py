@@ -123,3 +123,15 @@ def test_lifetime_verdict_with_truth_needs_lower_error_in_every_region():
     assert v["status"] == "holds" and "lower error vs truth" in v["claim"]
     lt["d"]["proposed"]["regions"]["fast"]["median_rel_error"] = 0.08
     assert lifetime_verdicts(lt)[0]["status"] == "fails"
+
+
+def test_lifetime_verdict_says_when_the_band_ends_matter():
+    lt = _lt_regions({"slow": _reg(0.04, 0.7, 0.2)}, {"slow": _reg(0.06, 0.6, 0.3)})
+    lt["d"]["proposed"]["regions_core"] = {"slow": _reg(0.03, 0.7, 0.2)}
+    lt["d"]["mueggler"]["regions_core"] = {"slow": _reg(0.05, 0.6, 0.3)}
+    v = lifetime_verdicts(lt)[0]
+    assert "(same MAD outcome)" in v["evidence"] and v["detail"]["core_mad_holds"] is True
+    lt["d"]["proposed"]["regions_core"]["slow"]["mad_log10"] = 0.06
+    v = lifetime_verdicts(lt)[0]
+    assert v["status"] == "holds"  # the verdict's regions are the whole bands
+    assert "depends on where the bands end" in v["evidence"] and v["detail"]["core_mad_holds"] is False
