@@ -10,28 +10,21 @@ import math
 import numpy as np
 from numba import njit
 
+from evedge._splitmix import _splitmix64
+
 _NEVER = np.iinfo(np.int64).min
-
-
-@njit(cache=True)
-def _mix64(z):
-    """splitmix64 finaliser (Steele, Lea & Flood 2014) on a uint64."""
-    z = z + np.uint64(0x9E3779B97F4A7C15)
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return z ^ (z >> np.uint64(31))
 
 
 @njit(cache=True)
 def _event_key(seed, g):
     """Random stream key of the event with global index ``g``: independent of chunking."""
-    return _mix64(np.uint64(seed) ^ _mix64(np.uint64(g)))
+    return _splitmix64(np.uint64(seed) ^ _splitmix64(np.uint64(g)))
 
 
 @njit(cache=True)
 def _draw(key, counter):
     """The ``counter``-th uint64 of the stream ``key``."""
-    return _mix64(key + np.uint64(counter))
+    return _splitmix64(key + np.uint64(counter))
 
 
 @njit(cache=True)

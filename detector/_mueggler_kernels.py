@@ -8,26 +8,17 @@ The algorithm and its quirks are described in that module's docstring.
 import numpy as np
 from numba import njit
 
+from evedge._splitmix import GOLDEN as _GOLDEN
+from evedge._splitmix import _splitmix64
+
 #: SAE value of a pixel that never fired (no real relative time can reach it).
 NEVER_FIRED = np.iinfo(np.int64).min
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
 
 # Neighbour offsets for the flow direction rounded to 45 degrees, indexed by
 # round(angle / 45) + 4 for angle in [-180, 180] (both ends give (-1, 0)).
 _NEIGHBOUR_DX = np.array([-1, -1, 0, 1, 1, 1, 0, -1, -1], dtype=np.int64)
 _NEIGHBOUR_DY = np.array([0, -1, -1, -1, 0, 1, 1, 1, 0], dtype=np.int64)
-
-
-@njit(cache=True)
-def _splitmix64(z):
-    """One splitmix64 output for the state ``z`` (uint64 arithmetic, wraps)."""
-    z = z + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _MIX1
-    z = (z ^ (z >> np.uint64(27))) * _MIX2
-    return z ^ (z >> np.uint64(31))
 
 
 @njit(cache=True)
