@@ -2,7 +2,8 @@
 
 Side by side for one frame: the grey frame, its Canny edges (the paper's
 MATLAB ``edge(I, 'Canny', 0.3)`` equivalent), the proposed method, Mueggler et
-al., 1 ms and 30 ms accumulation. One row per chosen frame; rows come from the
+al. (both with the primary display policy, the predecessor's display that
+clears the pixel behind each event), 1 ms and 30 ms accumulation. One row per chosen frame; rows come from the
 other experiments' maps (simulated slow and fast frames, a real frame) or, when
 run alone, from the real ``slider_depth`` frames.
 """
@@ -16,9 +17,11 @@ import numpy as np
 from ._files import save_figure, write_json_atomic
 from ._plot import pyplot
 from .canny import CANNY_SETTINGS, canny_edges
-from .methods import METHOD_LABELS, edge_maps
+from .methods import DISPLAY_LABELS, METHOD_LABELS, PRIMARY_DISPLAY, edge_maps, method_key
 
-PANEL_METHODS = ("proposed", "mueggler", "acc_1ms", "acc_30ms")
+#: Result keys of the panel's columns: the lifetime methods under the primary display policy.
+PANEL_METHODS = (method_key("proposed", PRIMARY_DISPLAY), method_key("mueggler", PRIMARY_DISPLAY),
+                 "acc_1ms", "acc_30ms")
 
 
 def panel_row(title: str, grey: np.ndarray, canny: np.ndarray, maps: dict[str, np.ndarray]) -> dict:
@@ -83,8 +86,11 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
                 ax.set_title(label, fontsize=8)
             if c == 0:
                 ax.set_ylabel(row["title"], fontsize=7)
+    fig.suptitle(f"Lifetime methods shown with the {DISPLAY_LABELS[PRIMARY_DISPLAY]} (the primary display "
+                 "policy, as in the authors' code); black: edge", fontsize=9)
     path = save_figure(fig, out_dir / "qualitative.png", dpi=130)
-    out = {"rows": [row["title"] for row in rows], "edge_pixels": counts, "figures": [str(path)]}
+    out = {"rows": [row["title"] for row in rows], "edge_pixels": counts, "figures": [str(path)],
+           "display": PRIMARY_DISPLAY}
     write_json_atomic(out_dir / "qualitative.json", out)
     return out
 

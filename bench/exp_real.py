@@ -4,6 +4,11 @@ The events of ``slider_depth`` at hand span 0.0038-0.1742 s; the frames inside
 that span (4 of them, at 38.8, 77.5, 116.3 and 155.1 ms) are the references.
 At each such frame time every method's edge map is compared by CDM with the
 Canny map of the frame, for every Canny setting.
+
+Both lifetime methods run under each display policy (see
+:mod:`evedge.bench.methods`); the figure shows the primary policy (predecessor
+display) and the accumulation baselines, the tables and ``results.json`` every
+policy.
 """
 
 from __future__ import annotations
@@ -16,7 +21,8 @@ from ._files import save_figure, write_csv_atomic, write_json_atomic
 from ._plot import METHOD_COLOURS, pyplot
 from .canny import CANNY_SETTINGS
 from .frame_eval import canny_references, cdm_table, summarise
-from .methods import DIAGNOSTIC_METHODS, METHOD_LABELS, METHODS, edge_maps
+from .methods import (ACCUMULATION_METHODS, DISPLAY_LABELS, DISPLAYS, METHOD_LABELS, PRIMARY_DISPLAY,
+                      check_displays, display_record, edge_maps, methods_for, split_key)
 
 #: Where the shared real recordings live, relative to the repository (``../shared/realdata``).
 def default_realdata_dir() -> Path:
@@ -42,7 +48,7 @@ def count_for(references: dict[str, np.ndarray]) -> int:
 
 
 def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, name: str = "slider_depth",
-             keep_maps: bool = False) -> dict:
+             keep_maps: bool = False, displays=DISPLAYS) -> dict:
     """CDM against Canny at the real frames inside the events.
 
     Parameters
@@ -58,16 +64,19 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
         Label of the recording in the results.
     keep_maps : bool
         Also return the grey frames, Canny and method maps (for the qualitative panel).
+    displays : sequence of str
+        Display policies of the lifetime methods (default both); recorded in the result.
 
     Returns
     -------
     dict
         ``{"recordings": {name: {"frame_t_us": [...], "canny_settings": [...],
         "cdm": {reference: {method: [per frame]}}, "summary": {reference: {method: {...}}},
-        "count_n": int}}, "figures": [...]}``
+        "count_n": int, "displays": {...}}}, "figures": [...]}``
     """
     from evedge.io import read_events
 
+    displays = check_displays(displays, "run_real")
     out_dir = Path(out_dir)
     path = Path(path) if path is not None else default_realdata_dir() / "slider_depth"
     if not path.exists():
@@ -81,7 +90,8 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     settings = CANNY_SETTINGS[:1] if quick else CANNY_SETTINGS
     refs = canny_references(grey, settings)
     count_n = count_for(refs)
-    maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=METHODS + DIAGNOSTIC_METHODS, count_n=count_n)
+    methods = methods_for(displays) + ACCUMULATION_METHODS + methods_for(displays, bases=("mueggler_t0",))
+    maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=methods, count_n=count_n)
     table = cdm_table(maps, refs, progress=progress, desc=f"CDM {name}")
     summary = {ref: {m: summarise(v) for m, v in per.items()} for ref, per in table.items()}
     rows = [[name, ref, m, i, int(times[i]), float(v[i])] for ref, per in table.items()
@@ -89,7 +99,8 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     write_csv_atomic(out_dir / f"real_{name}.csv", ["recording", "reference", "method", "frame", "t_us", "cdm"], rows)
     fig_path = _plot(out_dir, name, times, table)
     res = {"frame_t_us": times, "frame_index": idx, "canny_settings": [s.as_dict() for s in settings],
-           "cdm": table, "summary": summary, "count_n": count_n, "source": str(path)}
+           "cdm": table, "summary": summary, "count_n": count_n, "source": str(path),
+           "displays": display_record(displays)}
     out = {"recordings": {name: res}, "figures": [str(fig_path)]}
     write_json_atomic(out_dir / f"real_{name}.json", out)
     if keep_maps:
@@ -103,10 +114,14 @@ def _plot(out_dir: Path, name: str, times, table) -> Path:
     fig, axes = plt.subplots(1, len(refs), figsize=(4.2 * len(refs), 3.6), squeeze=False)
     for ax, ref in zip(axes[0], refs):
         for m, v in table[ref].items():
+            if split_key(m)[1] not in (None, PRIMARY_DISPLAY):
+                continue  # the figure shows the primary display; the tables have both
             ax.plot(np.asarray(times) / 1e3, v, marker="o", color=METHOD_COLOURS.get(m), label=METHOD_LABELS[m])
         ax.set_title(f"{name}: CDM vs {ref}", fontsize=9)
         ax.set_xlabel("frame time (ms)")
         ax.set_ylabel("CDM")
         ax.set_ylim(0, 100)
     axes[0][0].legend(fontsize=7)
+    fig.suptitle(f"lifetime methods shown with the {DISPLAY_LABELS[PRIMARY_DISPLAY]} (primary policy)",
+                 fontsize=9)
     return save_figure(fig, out_dir / f"real_{name}.png")

@@ -7,6 +7,10 @@ before its window could fill) each method's edge map is compared by CDM with
 * Canny on the clean grey frame, for each Canny setting (``canny_<name>``), and
 * the simulator's exact edge map at that time (``exact``).
 
+Both lifetime methods run under each display policy of
+:mod:`evedge.bench.methods` (``proposed``/``mueggler``: predecessor display,
+the primary one; ``proposed_noclear``/``mueggler_noclear``: lifetime only).
+
 Box plots per section (slow, fast) as in the paper; medians per section,
 truth and method go to ``results.json`` under ``cdm``.
 """
@@ -22,7 +26,8 @@ from ._plot import METHOD_COLOURS, pyplot
 from .canny import CANNY_SETTINGS
 from .exp_real import count_for
 from .frame_eval import canny_references, cdm_table, summarise
-from .methods import DIAGNOSTIC_METHODS, METHOD_LABELS, METHODS, edge_maps
+from .methods import (ACCUMULATION_METHODS, DISPLAY_LABELS, DISPLAYS, METHOD_LABELS, PRIMARY_DISPLAY,
+                      check_displays, display_record, edge_maps, methods_for, split_key)
 
 #: Frames earlier than this after the first event are skipped (the longest window, 30 ms).
 WARMUP_US = 30_000
@@ -82,7 +87,7 @@ def sections_us(metadata: dict, t_end_us: int) -> dict[str, tuple[int, int]]:
 def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation", quick: bool = False,
                    progress: bool = True, seed: int = 0, duration_s: float | None = None,
                    frame_rate_hz: float | None = None, max_frames: int | None = None,
-                   keep_maps: bool = False, diagnostics: bool = True) -> dict:
+                   keep_maps: bool = False, diagnostics: bool = True, displays=DISPLAYS) -> dict:
     """CDM over time against Canny and exact edges, per method; box plots per section.
 
     Parameters
@@ -106,14 +111,19 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         Also run :data:`~evedge.bench.methods.DIAGNOSTIC_METHODS` and compute
         the explanatory numbers (edge pixels per reference pixel, lifetime
         errors against the simulator's truth, per section).
+    displays : sequence of str
+        Display policies of the lifetime methods (default both, see
+        :data:`evedge.bench.methods.DISPLAYS`); recorded in the result.
 
     Returns
     -------
     dict
         ``{"scenes": {scene: {"sections_us": {...}, "frame_t_us": [...],
         "frame_section": [...], "cdm_per_frame": {truth: {method: [...]}},
-        "cdm": {truth: {method: {section: summary}}}, "count_n": int}}, "figures": [...]}``
+        "cdm": {truth: {method: {section: summary}}}, "count_n": int, "displays": {...}}},
+        "figures": [...]}``; ``method`` is a result key (see :func:`evedge.bench.methods.method_key`).
     """
+    displays = check_displays(displays, "run_similarity")
     out_dir = Path(out_dir)
     rec = recording if recording is not None else simulate_scene(
         scene, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=progress)
@@ -139,7 +149,9 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         if np.all(pos < et.size) and np.array_equal(et[np.minimum(pos, et.size - 1)], times):
             refs["exact"] = rec.edges.images[pos].astype(bool)
     count_n = count_for(refs)
-    methods = METHODS + (DIAGNOSTIC_METHODS if diagnostics else ())
+    methods = methods_for(displays) + ACCUMULATION_METHODS
+    if diagnostics:
+        methods += methods_for(displays, bases=("mueggler_t0",))
     maps, runs = edge_maps(rec.events, rec.sensor_size, times, methods=methods, count_n=count_n)
     table = cdm_table(maps, refs, progress=progress, desc=f"CDM {scene}")
     sections = sections_us(rec.metadata, t_last)
@@ -157,7 +169,7 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
     figures = _plot(out_dir, scene, times, frame_section, sections, table)
     res = {"sections_us": sections, "frame_t_us": times, "frame_section": list(frame_section),
            "canny_settings": [s.as_dict() for s in settings], "cdm_per_frame": table, "cdm": summary,
-           "count_n": count_n, "n_events": int(rec.events.size),
+           "count_n": count_n, "n_events": int(rec.events.size), "displays": display_record(displays),
            "diagnostics": _diagnostics(rec, maps, refs, runs, sections, frame_section) if diagnostics else {},
            "metadata": {k: v for k, v in rec.metadata.items() if isinstance(v, (str, int, float, bool))}}
     out = {"scenes": {scene: res}, "figures": [str(p) for p in figures]}
@@ -229,8 +241,8 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
     fig, axes = plt.subplots(len(refs), 1, figsize=(9, 2.6 * len(refs)), squeeze=False, sharex=True)
     for ax, ref in zip(axes[:, 0], refs):
         for m, v in table[ref].items():
-            ax.plot(np.asarray(times) / 1e6, v, marker=".", ms=3, lw=1, color=METHOD_COLOURS.get(m),
-                    label=METHOD_LABELS[m])
+            ax.plot(np.asarray(times) / 1e6, v, marker=".", ms=3, lw=1, color=METHOD_COLOURS.get(split_key(m)[0]),
+                    ls=_line_style(m), label=METHOD_LABELS[m])
         for k, (name, (a, b)) in enumerate(sections.items()):
             if name != "all":
                 ax.axvspan(a / 1e6, b / 1e6, color=("0.85", "0.7")[k % 2], alpha=0.35, lw=0)
@@ -240,22 +252,49 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
         ax.set_ylim(0, 100)
     axes[-1, 0].set_xlabel("time (s)")
     axes[0, 0].legend(fontsize=7, ncol=3)
-    fig.suptitle(f"{scene}: similarity over time (shaded: {', '.join(sections)} sections)")
+    fig.suptitle(f"{scene}: similarity over time (shaded: {', '.join(sections)} sections; solid: "
+                 f"{DISPLAY_LABELS[PRIMARY_DISPLAY]}, primary; dashed: other display)", fontsize=9)
     paths.append(save_figure(fig, out_dir / f"similarity_{scene}_over_time.png"))
 
     names = [n for n in sections]
-    fig, axes = plt.subplots(len(refs), len(names), figsize=(4.5 * len(names), 3.0 * len(refs)), squeeze=False)
+    fig, axes = plt.subplots(len(refs), len(names), figsize=(5.2 * len(names), 3.2 * len(refs)), squeeze=False)
     for r, ref in enumerate(refs):
+        methods = _box_order(table[ref])
         for c, name in enumerate(names):
             ax = axes[r, c]
-            methods = list(table[ref])
             data = [np.asarray(table[ref][m])[frame_section == name] for m in methods]
             bp = ax.boxplot(data, patch_artist=True, widths=0.6)
             for patch, m in zip(bp["boxes"], methods):
-                patch.set_facecolor(METHOD_COLOURS.get(m, "w"))
-            ax.set_xticks(range(1, len(methods) + 1), [m.replace("acc_", "") for m in methods], fontsize=7)
+                base, display = split_key(m)
+                patch.set_facecolor(METHOD_COLOURS.get(base, "w"))
+                if display is not None and display != PRIMARY_DISPLAY:
+                    patch.set_alpha(0.45)
+                    patch.set_hatch("///")
+            ax.set_xticks(range(1, len(methods) + 1), [_short(m) for m in methods], fontsize=7)
             ax.set_title(f"{name} section, vs {ref}", fontsize=9)
             ax.set_ylim(0, 100)
-    fig.suptitle(f"{scene}: CDM per section")
+    fig.suptitle(f"{scene}: CDM per section. Plain boxes: {DISPLAY_LABELS[PRIMARY_DISPLAY]} (primary); "
+                 f"hatched ('no clear'): {', '.join(DISPLAY_LABELS[d] for d in DISPLAYS if d != PRIMARY_DISPLAY)}",
+                 fontsize=9)
     paths.append(save_figure(fig, out_dir / f"similarity_{scene}_boxplots.png"))
     return paths
+
+
+def _line_style(key: str) -> str:
+    display = split_key(key)[1]
+    return "-" if display in (None, PRIMARY_DISPLAY) else "--"
+
+
+def _box_order(per_method: dict) -> list[str]:
+    """Box plot order: each lifetime method's policies side by side, then the accumulation
+    baselines; diagnostic variants are left out (they are in the tables)."""
+    keys = [m for m in per_method if split_key(m)[0] != "mueggler_t0"]
+    rank = {b: i for i, b in enumerate(("proposed", "mueggler") + ACCUMULATION_METHODS)}
+    pol = {d: i for i, d in enumerate(DISPLAYS)}
+    return sorted(keys, key=lambda m: (rank.get(split_key(m)[0], 99), pol.get(split_key(m)[1], -1)))
+
+
+def _short(key: str) -> str:
+    base, display = split_key(key)
+    text = base.replace("acc_", "")
+    return text + ("\nno clear" if display is not None and display != PRIMARY_DISPLAY else "")

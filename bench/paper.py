@@ -24,7 +24,8 @@ import numpy as np
 
 from ._files import write_json_atomic
 from .canny import CANNY_SETTINGS
-from .verdicts import all_verdicts
+from .methods import DISPLAYS, display_record
+from .verdicts import all_verdicts, display_summary
 
 EXPERIMENTS = ("ransac", "lifetime", "similarity", "qualitative", "real")
 
@@ -87,8 +88,16 @@ NOTES = [
     "the evaluated frames (a count that fills about as many pixels as the truth has).",
     "Accumulation baselines and Mueggler use the raw events; the proposed method uses the event buffer "
     "(tau_min = 10 ms) before lifetime estimation, as the paper does.",
-    "Mueggler's edge image clears the pixel behind each event in its motion direction (its own display); "
-    "the proposed edge image keeps a pixel while t_e <= T < t_e + tau_e.",
+    "Display policy (how lifetimes become an edge map; it moves the CDM more than the estimator does, so both "
+    "lifetime methods always get the same one). 'predecessor' (PRIMARY; result keys proposed, mueggler): each "
+    "event keeps its pixel alive for its lifetime and clears the 8-neighbour behind it in its motion direction, "
+    "as Mueggler et al.'s MATLAB display does; it is primary because the authors' code is a fork of that code "
+    "(lee-sangil/rpg_event_lifetime) and inherits the display, and it treats both methods alike. "
+    "'lifetime_only' (secondary; keys proposed_noclear, mueggler_noclear, mueggler_t0_noclear): a pixel is edge "
+    "while t_e <= T < t_e + tau_e of its newest estimated event, nothing cleared. Accumulation baselines (acc_*) "
+    "have no display policy and serve both. Every CDM claim is checked under both policies (verdict field "
+    "'display'); results.json 'display' records the policies and their keys. The qualitative panel and the "
+    "real-frames figure show the primary policy; the tables show both.",
     "Similarity over time: frames earlier than 30 ms after the first event are skipped (no method is judged "
     "before the longest window could fill).",
     "RANSAC study: the detector's default parameters except delta (and use_intra). True inliers: timestamps within truth_tol_px x tau of the true plane; the "
@@ -168,7 +177,7 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     figures: dict[str, list] = {}
     timing: dict[str, float] = {}
     params: dict = {"seed": seed, "quick": quick, "canny_settings": [s.as_dict() for s in CANNY_SETTINGS],
-                    "detector": _detector_params()}
+                    "detector": _detector_params(), "display": display_record(DISPLAYS)}
     kept_maps: dict = {}
 
     def attempt(name, fn):
@@ -271,6 +280,7 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
             figures["qualitative"] = res["figures"]
             results["qualitative"] = {k: res[k] for k in ("rows", "edge_pixels")}
     results["verdicts"] = all_verdicts(results)
+    results["display"] = dict(display_record(DISPLAYS), summary=display_summary(results["verdicts"]))
     wall = time.perf_counter() - t_start
     results["params"] = params
     results["run"] = {"date_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),

@@ -35,11 +35,22 @@ Claims checked
 ``real_cdm`` (paper sec. 3.2 on real sequences)
     On the real frames, the proposed method's median CDM against Canny is the
     highest of all methods.
+
+Display policies
+----------------
+The CDM claims (``cdm_*`` and ``real_cdm``) are checked once per display
+policy of :mod:`evedge.bench.methods` (``predecessor``, the primary one, and
+``lifetime_only``), each time with both lifetime methods under that policy and
+the same accumulation baselines. Each such verdict carries ``display`` and its
+claim starts with the policy; :func:`display_summary` condenses them for the
+report's headline.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .methods import DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, PRIMARY_DISPLAY_WHY, display_view
 
 BASELINES = ("mueggler", "acc_1ms", "acc_30ms")
 SECTIONS = ("slow", "fast")
@@ -51,9 +62,15 @@ def _fmt(x, nd=1) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"
 
 
-def _verdict(holds: bool | None, claim: str, evidence: str, detail: dict | None = None) -> dict:
+def _verdict(holds: bool | None, claim: str, evidence: str, detail: dict | None = None,
+             display: str | None = None) -> dict:
     status = "not checked" if holds is None else ("holds" if holds else "fails")
-    return {"claim": claim, "status": status, "holds": holds, "evidence": evidence, "detail": detail or {}}
+    return {"claim": claim, "status": status, "holds": holds, "evidence": evidence, "detail": detail or {},
+            "display": display}
+
+
+def _tag(display: str) -> str:
+    return f"{display} display" + (" (primary)" if display == PRIMARY_DISPLAY else "")
 
 
 def _why(diag: dict, truth: str, section: str, baseline: str, med: dict) -> str:
@@ -74,73 +91,95 @@ def _why(diag: dict, truth: str, section: str, baseline: str, med: dict) -> str:
     return "; ".join(parts)
 
 
-def cdm_verdicts(cdm: dict, diagnostics: dict | None = None) -> list[dict]:
-    """``cdm_beats_baselines``, ``cdm_beats_count`` and ``cdm_consistent`` per scene and truth kind."""
+def cdm_verdicts(cdm: dict, diagnostics: dict | None = None, displays=DISPLAYS) -> list[dict]:
+    """``cdm_beats_baselines``, ``cdm_beats_count`` and ``cdm_consistent`` per display policy, scene
+    and truth kind.
+
+    ``cdm[scene][truth]`` is keyed by result key (``proposed``, ``proposed_noclear``, ...);
+    for each policy in ``displays`` the claims are checked on that policy's view
+    (:func:`evedge.bench.methods.display_view`). A policy whose lifetime methods
+    are absent gives one "not checked" verdict.
+    """
     out = []
     if not cdm:
         return [_verdict(None, "Proposed beats Mueggler, 1 ms and 30 ms on CDM in both sections",
                          "similarity experiment not run"),
                 _verdict(None, "Proposed CDM is more consistent across speeds", "similarity experiment not run")]
-    for scene, per_truth in cdm.items():
-        diag = (diagnostics or {}).get(scene) or {}
-        for truth, per_method in per_truth.items():
-            if "proposed" not in per_method:
+    for display in displays:
+        for scene, per_truth in cdm.items():
+            diag = _diag_view((diagnostics or {}).get(scene) or {}, display)
+            for truth, per_method_all in per_truth.items():
+                out += _cdm_one(scene, truth, display_view(per_method_all, display), diag, display)
+    return out
+
+
+def _diag_view(diag: dict, display: str) -> dict:
+    """Similarity diagnostics under one policy (pixel ratios keyed by base method)."""
+    ratio = {ref: display_view(per, display) for ref, per in (diag.get("pixel_ratio") or {}).items()}
+    return dict(diag, pixel_ratio=ratio)
+
+
+def _cdm_one(scene: str, truth: str, per_method: dict, diag: dict, display: str) -> list[dict]:
+    """The CDM claims for one policy, scene and truth kind (``per_method`` keyed by base method)."""
+    out = []
+    where = f"[{_tag(display)}; {scene}, vs {truth}]"
+    if "proposed" not in per_method:
+        return [_verdict(None, f"{where} Proposed beats Mueggler, 1 ms and 30 ms (median CDM)",
+                         f"the proposed method was not run under the {display} display", display=display)]
+    med = {m: {s: per_method[m].get(s, {}).get("median", np.nan) for s in SECTIONS}
+           for m in per_method}
+    have_sections = all(per_method["proposed"].get(s, {}).get("n", 0) > 0 for s in SECTIONS)
+    if not have_sections:
+        return [_verdict(None, f"{where} Proposed beats baselines in both sections",
+                         "the recording lacks a slow or a fast section with frames", display=display)]
+    losses, parts, whys = [], [], []
+    for s in SECTIONS:
+        p = med["proposed"][s]
+        for b in BASELINES:
+            if b not in med:
                 continue
-            med = {m: {s: per_method[m].get(s, {}).get("median", np.nan) for s in SECTIONS}
-                   for m in per_method}
-            have_sections = all(per_method["proposed"].get(s, {}).get("n", 0) > 0 for s in SECTIONS)
-            if not have_sections:
-                out.append(_verdict(None, f"[{scene}, vs {truth}] Proposed beats baselines in both sections",
-                                    "the recording lacks a slow or a fast section with frames"))
-                continue
-            losses, parts, whys = [], [], []
-            for s in SECTIONS:
-                p = med["proposed"][s]
-                for b in BASELINES:
-                    if b not in med:
-                        continue
-                    q = med[b][s]
-                    parts.append(f"{s}: proposed {_fmt(p)} vs {b} {_fmt(q)}")
-                    if not p > q:
-                        losses.append(f"{b} in the {s} section ({_fmt(q)} >= {_fmt(p)})")
-                        why = _why(diag, truth, s, b, med)
-                        if why:
-                            whys.append(why)
-            holds = not losses
-            ev = "; ".join(parts)
-            if losses:
-                ev = "not beaten by: " + ", ".join(losses) + ". Medians: " + ev
-                if whys:
-                    ev += ". Why: " + " | ".join(whys)
-            out.append(_verdict(holds, f"[{scene}, vs {truth}] Proposed beats Mueggler, 1 ms and 30 ms "
-                                       f"(median CDM) in both the slow and the fast section", ev,
-                                {"medians": med}))
-            if "acc_count" in med:
-                lost = [s for s in SECTIONS if not med["proposed"][s] > med["acc_count"][s]]
-                ev = "; ".join(f"{s}: proposed {_fmt(med['proposed'][s])} vs fixed count "
-                               f"{_fmt(med['acc_count'][s])}" for s in SECTIONS)
-                ev += (" (the count is set from the reference maps' size, favourable to this baseline)")
-                if lost:
-                    whys = [_why(diag, truth, s, "acc_count", med) for s in lost]
-                    ev += ". Why: " + " | ".join(w for w in whys if w)
-                out.append(_verdict(not lost, f"[{scene}, vs {truth}] Proposed beats fixed-count accumulation "
-                                              f"(median CDM) in both sections", ev))
-            gap = {m: abs(med[m]["fast"] - med[m]["slow"]) for m in med}
-            worse = [b for b in BASELINES if b in gap and not gap["proposed"] < gap[b]]
-            ev = ", ".join(f"{m} {_fmt(g)}" for m, g in gap.items())
-            ev = "|median fast - median slow|: " + ev
-            if worse:
-                ev += f". At least as consistent as the proposed method: {', '.join(worse)}"
-            if "mueggler_t0" in gap and "mueggler" in gap and gap["mueggler_t0"] < gap["proposed"] < gap["mueggler"]:
-                ev += (f". Caveat: Mueggler's inconsistency is its absolute-time quirk (the slow section is the "
-                       f"start of the recording): with its time origin 1 s earlier (diagnostic) its gap is "
-                       f"{_fmt(gap['mueggler_t0'])} (slow {_fmt(med['mueggler_t0']['slow'])}, fast "
-                       f"{_fmt(med['mueggler_t0']['fast'])}), smaller than the proposed method's")
-            if "acc_count" in gap and not gap["proposed"] < gap["acc_count"]:
-                ev += (". Note: fixed-count accumulation is more consistent still (by construction its maps "
-                       "have the same number of pixels at any speed)")
-            out.append(_verdict(not worse, f"[{scene}, vs {truth}] Proposed CDM is more consistent across "
-                                           f"speeds than Mueggler, 1 ms and 30 ms", ev, {"gap": gap}))
+            q = med[b][s]
+            parts.append(f"{s}: proposed {_fmt(p)} vs {b} {_fmt(q)}")
+            if not p > q:
+                losses.append(f"{b} in the {s} section ({_fmt(q)} >= {_fmt(p)})")
+                why = _why(diag, truth, s, b, med)
+                if why:
+                    whys.append(why)
+    holds = not losses
+    ev = "; ".join(parts)
+    if losses:
+        ev = "not beaten by: " + ", ".join(losses) + ". Medians: " + ev
+        if whys:
+            ev += ". Why: " + " | ".join(whys)
+    out.append(_verdict(holds, f"{where} Proposed beats Mueggler, 1 ms and 30 ms "
+                               f"(median CDM) in both the slow and the fast section", ev,
+                        {"medians": med}, display))
+    if "acc_count" in med:
+        lost = [s for s in SECTIONS if not med["proposed"][s] > med["acc_count"][s]]
+        ev = "; ".join(f"{s}: proposed {_fmt(med['proposed'][s])} vs fixed count "
+                       f"{_fmt(med['acc_count'][s])}" for s in SECTIONS)
+        ev += (" (the count is set from the reference maps' size, favourable to this baseline)")
+        if lost:
+            whys = [_why(diag, truth, s, "acc_count", med) for s in lost]
+            ev += ". Why: " + " | ".join(w for w in whys if w)
+        out.append(_verdict(not lost, f"{where} Proposed beats fixed-count accumulation "
+                                      f"(median CDM) in both sections", ev, {"medians": med}, display))
+    gap = {m: abs(med[m]["fast"] - med[m]["slow"]) for m in med}
+    worse = [b for b in BASELINES if b in gap and not gap["proposed"] < gap[b]]
+    ev = ", ".join(f"{m} {_fmt(g)}" for m, g in gap.items())
+    ev = "|median fast - median slow|: " + ev
+    if worse:
+        ev += f". At least as consistent as the proposed method: {', '.join(worse)}"
+    if "mueggler_t0" in gap and "mueggler" in gap and gap["mueggler_t0"] < gap["proposed"] < gap["mueggler"]:
+        ev += (f". Caveat: Mueggler's inconsistency is its absolute-time quirk (the slow section is the "
+               f"start of the recording): with its time origin 1 s earlier (diagnostic) its gap is "
+               f"{_fmt(gap['mueggler_t0'])} (slow {_fmt(med['mueggler_t0']['slow'])}, fast "
+               f"{_fmt(med['mueggler_t0']['fast'])}), smaller than the proposed method's")
+    if "acc_count" in gap and not gap["proposed"] < gap["acc_count"]:
+        ev += (". Note: fixed-count accumulation is more consistent still (by construction its maps "
+               "have the same number of pixels at any speed)")
+    out.append(_verdict(not worse, f"{where} Proposed CDM is more consistent across "
+                                   f"speeds than Mueggler, 1 ms and 30 ms", ev, {"gap": gap}, display))
     return out
 
 
@@ -327,24 +366,83 @@ def lifetime_verdicts(lifetime: dict, datasets: dict | None = None) -> list[dict
     return out
 
 
-def real_verdicts(real: dict) -> list[dict]:
-    """``real_cdm`` per recording and Canny setting."""
+def real_verdicts(real: dict, displays=DISPLAYS) -> list[dict]:
+    """``real_cdm`` per display policy, recording and Canny setting (``real[rec]`` keyed by result key)."""
     out = []
-    for rec, per_method in (real or {}).items():
-        if "proposed" not in per_method:
-            continue
-        refs = list(per_method["proposed"]["median"])
-        for ref in refs:
-            med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method if m not in _DIAGNOSTIC}
-            best = max(med, key=lambda m: -np.inf if not np.isfinite(med[m]) else med[m])
-            ev = ", ".join(f"{m} {_fmt(v)}" for m, v in med.items())
-            diag = [f"{m} {_fmt(per_method[m]['median'].get(ref, np.nan))}" for m in per_method if m in _DIAGNOSTIC]
-            if diag:
-                ev += "; diagnostic (not ranked): " + ", ".join(diag)
-            out.append(_verdict(best == "proposed", f"[{rec}, vs {ref}] Proposed has the highest median CDM "
-                                                    f"on the real frames", f"median CDM: {ev}; best: {best}",
-                                {"medians": med}))
+    for display in displays:
+        for rec, per_method_all in (real or {}).items():
+            per_method = display_view(per_method_all, display)
+            where = f"[{_tag(display)}; {rec}"
+            if "proposed" not in per_method:
+                out.append(_verdict(None, f"{where}] Proposed has the highest median CDM on the real frames",
+                                    f"the proposed method was not run under the {display} display",
+                                    display=display))
+                continue
+            for ref in per_method["proposed"]["median"]:
+                med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method if m not in _DIAGNOSTIC}
+                best = max(med, key=lambda m: -np.inf if not np.isfinite(med[m]) else med[m])
+                ev = ", ".join(f"{m} {_fmt(v)}" for m, v in med.items())
+                diag = [f"{m} {_fmt(per_method[m]['median'].get(ref, np.nan))}" for m in per_method
+                        if m in _DIAGNOSTIC]
+                if diag:
+                    ev += "; diagnostic (not ranked): " + ", ".join(diag)
+                out.append(_verdict(best == "proposed", f"{where}, vs {ref}] Proposed has the highest median CDM "
+                                                        f"on the real frames", f"median CDM: {ev}; best: {best}",
+                                    {"medians": med}, display))
     return out
+
+
+def _headline_medians(verdicts: list[dict]) -> list[str]:
+    """Proposed vs Mueggler medians from the ``cdm_beats_baselines`` and ``real_cdm`` verdicts of one policy."""
+    out = []
+    for v in verdicts:
+        med = (v.get("detail") or {}).get("medians") or {}
+        if "proposed" not in med or "mueggler" not in med or "fixed-count" in v["claim"]:
+            continue
+        where = v["claim"][v["claim"].index(";") + 1:v["claim"].index("]")].strip()
+        if isinstance(med["proposed"], dict):
+            out.append(f"{where}: slow {_fmt(med['proposed'].get('slow'))} vs {_fmt(med['mueggler'].get('slow'))}, "
+                       f"fast {_fmt(med['proposed'].get('fast'))} vs {_fmt(med['mueggler'].get('fast'))}")
+        else:
+            out.append(f"{where}: {_fmt(med['proposed'])} vs {_fmt(med['mueggler'])}")
+    return out
+
+
+def display_summary(verdicts: list[dict]) -> dict:
+    """The display-dependent verdicts condensed per policy, for the report's headline.
+
+    Returns
+    -------
+    dict
+        ``{"primary": name, "why": text, "policies": {name: {"label", "holds", "fails",
+        "not_checked", "failed_claims": [claim, ...]}}, "text": one paragraph}``; the
+        paragraph is built from the verdicts, never written by hand.
+    """
+    pol = {}
+    for d in DISPLAYS:
+        vs = [v for v in verdicts if v.get("display") == d]
+        pol[d] = {"label": DISPLAY_LABELS[d], "n": len(vs),
+                  "holds": sum(v["status"] == "holds" for v in vs),
+                  "fails": sum(v["status"] == "fails" for v in vs),
+                  "not_checked": sum(v["status"] == "not checked" for v in vs),
+                  "failed_claims": [v["claim"] for v in vs if v["status"] == "fails"],
+                  "medians": _headline_medians(vs)}
+
+    def line(d):
+        p = pol[d]
+        if not p["n"]:
+            return f"under the {p['label']} no CDM claim was checked"
+        txt = (f"under the {p['label']}, {p['holds']} of {p['n']} CDM claims hold and {p['fails']} fail"
+               + (f" ({p['not_checked']} not checked)" if p["not_checked"] else ""))
+        if p["medians"]:
+            txt += " (median CDM proposed vs Mueggler: " + "; ".join(p["medians"]) + ")"
+        return txt
+
+    others = [d for d in DISPLAYS if d != PRIMARY_DISPLAY]
+    text = (f"Display policy: the primary comparison uses the {DISPLAY_LABELS[PRIMARY_DISPLAY]} for both "
+            f"lifetime methods, because {PRIMARY_DISPLAY_WHY}. Result: {line(PRIMARY_DISPLAY)}. "
+            + " ".join(f"For comparison, {line(d)}." for d in others))
+    return {"primary": PRIMARY_DISPLAY, "why": PRIMARY_DISPLAY_WHY, "policies": pol, "text": text}
 
 
 def all_verdicts(results: dict) -> list[dict]:

@@ -168,3 +168,75 @@ def test_lifetime_experiment_per_speed_region(two_bands, tmp_path):
     assert header.startswith("dataset,region,method") and "mad_log10" in header
     data = json.loads((tmp_path / "lifetime.json").read_text())
     assert data["lifetime"]["stripes_sim"]["proposed"]["regions"]["slow"]["mad_log10"] is not None
+
+
+def _trail_case():
+    """A vertical edge moving +x at 100 px/s over a 10 x 3 sensor: one event per pixel every 10 ms,
+    each with a lifetime of 30 ms (three times too long, so trails are visible)."""
+    from evedge.bench.methods import LifetimeRun
+    from evedge.detector.result import empty_lifetimes
+    from evedge.events import SensorSize, make_events
+
+    xs = np.repeat(np.arange(6), 3)
+    ys = np.tile(np.arange(3), 6)
+    ev = make_events(xs, ys, xs * 10_000, np.ones(xs.size, bool))
+    lt = empty_lifetimes(ev.size)
+    lt["lifetime_us"], lt["vx_px_s"], lt["vy_px_s"], lt["valid"] = 30_000.0, 100.0, 0.0, True
+    return ev, SensorSize(10, 3), LifetimeRun(ev, lt)
+
+
+def test_display_policy_known_answer():
+    from evedge.bench.methods import edge_maps
+
+    ev, size, run = _trail_case()
+    maps, runs = edge_maps(ev, size, [55_000], methods=("proposed", "mueggler", "proposed_noclear",
+                                                       "mueggler_noclear", "acc_30ms"),
+                           lifetime_runs={"proposed": run, "mueggler": run})
+    assert runs["proposed"] is run  # the given lifetimes are reused, not recomputed
+    cols = {m: sorted(set(np.flatnonzero(v[0].any(axis=0)))) for m, v in maps.items()}
+    # lifetime only: alive while t_e <= 55 ms < t_e + 30 ms -> the events at 30, 40, 50 ms (x = 3, 4, 5)
+    assert cols["proposed_noclear"] == cols["mueggler_noclear"] == [3, 4, 5]
+    # predecessor display: each event clears the pixel behind it (x - 1), only the front stays
+    assert cols["proposed"] == cols["mueggler"] == [5]
+    assert maps["proposed"][0].sum() == 3 and maps["proposed_noclear"][0].sum() == 9
+    # accumulation ignores the policy: events in (25, 55] ms
+    assert cols["acc_30ms"] == [3, 4, 5]
+
+
+def test_display_keys_and_validation():
+    from evedge.bench.methods import (DISPLAYS, PRIMARY_DISPLAY, check_displays, display_view, method_key,
+                                      split_key)
+
+    assert PRIMARY_DISPLAY == DISPLAYS[0] == "predecessor"
+    assert method_key("proposed", "predecessor") == "proposed"
+    assert method_key("mueggler", "lifetime_only") == "mueggler_noclear"
+    assert method_key("acc_1ms", "lifetime_only") == "acc_1ms"
+    for key in METHODS + DIAGNOSTIC_METHODS:
+        base, display = split_key(key)
+        assert display is None or method_key(base, display) == key
+    view = display_view({"proposed": 1, "proposed_noclear": 2, "acc_1ms": 3, "mueggler_t0_noclear": 4}, "lifetime_only")
+    assert view == {"proposed": 2, "acc_1ms": 3, "mueggler_t0": 4}
+    with pytest.raises(ValueError, match="displays"):
+        check_displays(("nope",), "f")
+    with pytest.raises(ValueError, match="unknown method"):
+        method_key("canny", "predecessor")
+
+
+def test_similarity_runs_both_display_policies(similarity):
+    _, res = similarity
+    s = res["scenes"]["edge"]
+    rec = s["displays"]
+    assert rec["primary"] == "predecessor"
+    assert rec["policies"]["predecessor"] == {"clear_behind": True, "label": rec["policies"]["predecessor"]["label"],
+                                              "methods": {"proposed": "proposed", "mueggler": "mueggler"}}
+    assert rec["policies"]["lifetime_only"]["clear_behind"] is False
+    assert rec["policies"]["lifetime_only"]["methods"] == {"proposed": "proposed_noclear",
+                                                           "mueggler": "mueggler_noclear"}
+    maps = res["_maps"]["maps"]
+    # clearing only ever removes pixels: the predecessor map is a subset of the lifetime-only map
+    for base in ("proposed", "mueggler"):
+        assert not np.any(maps[base] & ~maps[base + "_noclear"])
+    assert maps["proposed"].sum() < maps["proposed_noclear"].sum()
+    out, _ = similarity
+    header_ok = (out / "similarity_edge.csv").read_text()
+    assert ",proposed_noclear," in header_ok and ",mueggler_noclear," in header_ok

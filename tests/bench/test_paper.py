@@ -48,6 +48,39 @@ def test_results_json_has_the_keys(tiny_run):
     assert data["run"]["versions"]["numpy"]
 
 
+def test_both_display_policies_in_results_and_report(tiny_run):
+    out, res = tiny_run
+    data = json.loads((out / "results.json").read_text())
+    disp = data["display"]
+    assert disp["primary"] == "predecessor" and data["params"]["display"]["primary"] == "predecessor"
+    assert disp["policies"]["lifetime_only"]["methods"] == {"proposed": "proposed_noclear",
+                                                           "mueggler": "mueggler_noclear"}
+    scene = next(iter(data["cdm"]))
+    rec = next(iter(data["real"]))
+    for key in ("proposed", "mueggler", "proposed_noclear", "mueggler_noclear", "acc_1ms"):
+        assert key in data["cdm"][scene]["exact"], key
+        assert key in data["real"][rec], key
+    by_display = {}
+    for v in data["verdicts"]:
+        by_display.setdefault(v["display"], []).append(v)
+    # the CDM claims (3 per truth kind) and the real-frames claim, once per policy
+    n_truth = len(data["cdm"][scene])
+    for d in ("predecessor", "lifetime_only"):
+        vs = by_display[d]
+        assert sum("beats Mueggler" in v["claim"] for v in vs) == n_truth
+        assert sum("real frames" in v["claim"] for v in vs) >= 1
+        assert all(v["status"] in ("holds", "fails") for v in vs)
+    # non-CDM claims carry no display
+    assert any(v["claim"].startswith("Under global noise") and v["display"] is None for v in data["verdicts"])
+    summ = disp["summary"]
+    assert summ["policies"]["predecessor"]["n"] == len(by_display["predecessor"])
+    assert any("display policy" in n.lower() and "primary" in n.lower() for n in data["notes"])
+    text = (out / "report.html").read_text()
+    assert "Display policy: the primary comparison uses the predecessor display" in text
+    assert "For comparison, under the lifetime-only display" in text
+    assert "primary display policy" in text  # panel and real-frames captions
+
+
 def test_report_is_one_self_contained_page(tiny_run):
     out, res = tiny_run
     text = (out / "report.html").read_text()

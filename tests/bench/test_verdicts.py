@@ -1,6 +1,11 @@
 """Verdicts are computed from the numbers: both outcomes on synthetic results."""
 
-from evedge.bench.verdicts import all_verdicts, cdm_verdicts, intra_verdicts, lifetime_verdicts, real_verdicts
+import pytest
+
+from evedge.bench.verdicts import (all_verdicts, cdm_verdicts, display_summary, intra_verdicts, lifetime_verdicts,
+                                   real_verdicts)
+
+PRIMARY_ONLY = ("predecessor",)
 
 
 def _summ(median, n=5):
@@ -16,10 +21,10 @@ def _cdm(prop_slow, prop_fast, others):
 
 def test_cdm_claims_hold_and_fail():
     good = _cdm(80, 78, {"mueggler": (70, 50), "acc_1ms": (20, 40), "acc_30ms": (60, 30)})
-    v = cdm_verdicts(good)
+    v = cdm_verdicts(good, displays=PRIMARY_ONLY)
     assert [x["status"] for x in v] == ["holds", "holds"]
     bad = _cdm(80, 60, {"mueggler": (70, 85), "acc_1ms": (20, 40), "acc_30ms": (60, 30)})
-    v = cdm_verdicts(bad)
+    v = cdm_verdicts(bad, displays=PRIMARY_ONLY)
     assert v[0]["status"] == "fails" and "mueggler in the fast section" in v[0]["evidence"]
     # gap proposed 20 vs mueggler 15 -> not the most consistent
     assert v[1]["status"] == "fails" and "mueggler" in v[1]["evidence"]
@@ -31,7 +36,7 @@ def test_cdm_verdict_explains_a_loss_and_checks_the_count_baseline():
     diag = {"scene": {"pixel_ratio": {"exact": {"proposed": {"fast": 1.8}, "mueggler": {"fast": 0.9}}},
                       "lifetime": {"proposed": {"fast": {"coverage": 0.9, "median_rel_error": 0.2,
                                                          "over_2x": 0.07, "under_2x": 0.01}}}}}
-    v = cdm_verdicts(bad, diag)
+    v = cdm_verdicts(bad, diag, displays=PRIMARY_ONLY)
     assert "Why:" in v[0]["evidence"] and "1.80" in v[0]["evidence"] and "7.0% more than 2x" in v[0]["evidence"]
     count = [x for x in v if "fixed-count" in x["claim"]]
     assert count and count[0]["status"] == "fails"  # 60 < 70 in the fast section
@@ -62,14 +67,14 @@ def test_lifetime_and_real_claims():
     lt["d"]["proposed"]["median_rel_error"] = 0.5
     assert lifetime_verdicts(lt)[0]["status"] == "fails"
     real = {"r": {"proposed": {"median": {"c": 50.0}}, "acc_30ms": {"median": {"c": 60.0}}}}
-    v = real_verdicts(real)
+    v = real_verdicts(real, displays=PRIMARY_ONLY)
     assert v[0]["status"] == "fails" and "acc_30ms" in v[0]["evidence"]
     assert len(all_verdicts({"real": real, "lifetime": lt})) >= 4
 
 
 def test_consistency_verdict_flags_the_mueggler_time_origin_quirk():
     cdm = _cdm(80, 70, {"mueggler": (40, 85), "acc_1ms": (20, 40), "acc_30ms": (60, 30), "mueggler_t0": (86, 87)})
-    v = cdm_verdicts(cdm)
+    v = cdm_verdicts(cdm, displays=PRIMARY_ONLY)
     consistent = [x for x in v if "consistent" in x["claim"]][0]
     assert consistent["status"] == "holds"
     assert "absolute-time quirk" in consistent["evidence"]
@@ -135,3 +140,66 @@ def test_lifetime_verdict_says_when_the_band_ends_matter():
     v = lifetime_verdicts(lt)[0]
     assert v["status"] == "holds"  # the verdict's regions are the whole bands
     assert "depends on where the bands end" in v["evidence"] and v["detail"]["core_mad_holds"] is False
+
+
+def _two_policies(prim, sec):
+    """CDM results with both display policies: prim/sec = (proposed, mueggler) medians as (slow, fast)."""
+    others = {"mueggler": prim[1], "proposed_noclear": sec[0], "mueggler_noclear": sec[1],
+              "acc_1ms": (20, 40), "acc_30ms": (60, 30), "acc_count": (60, 60)}
+    return _cdm(*prim[0], others)
+
+
+def test_cdm_claims_are_checked_under_both_display_policies():
+    # predecessor display: proposed wins everywhere; lifetime only: Mueggler wins the fast section
+    cdm = _two_policies(((88, 89), (40, 86)), ((74, 54), (43, 62)))
+    v = cdm_verdicts(cdm)
+    assert {x["display"] for x in v} == {"predecessor", "lifetime_only"}
+    prim = [x for x in v if x["display"] == "predecessor"]
+    sec = [x for x in v if x["display"] == "lifetime_only"]
+    assert len(prim) == len(sec) == 3  # beats baselines, beats fixed count, consistency
+    assert all(x["claim"].startswith("[predecessor display (primary); scene, vs exact]") for x in prim)
+    assert all(x["claim"].startswith("[lifetime_only display; scene, vs exact]") for x in sec)
+    beats = {x["display"]: x for x in v if "beats Mueggler" in x["claim"]}
+    assert beats["predecessor"]["status"] == "holds"
+    assert "fast: proposed 89.0 vs mueggler 86.0" in beats["predecessor"]["evidence"]
+    # the secondary view reads the _noclear keys, never the primary ones
+    assert beats["lifetime_only"]["status"] == "fails"
+    assert "mueggler in the fast section (62.0 >= 54.0)" in beats["lifetime_only"]["evidence"]
+    assert beats["lifetime_only"]["detail"]["medians"]["proposed"] == {"slow": 74, "fast": 54}
+    count = {x["display"]: x["status"] for x in v if "fixed-count" in x["claim"]}
+    assert count == {"predecessor": "holds", "lifetime_only": "fails"}
+    assert all("favourable to this baseline" in x["evidence"] for x in v if "fixed-count" in x["claim"])
+    # swapping the policies' numbers swaps the outcomes: nothing is hard-coded
+    swapped = _two_policies(((74, 54), (43, 62)), ((88, 89), (40, 86)))
+    w = {x["display"]: x["status"] for x in cdm_verdicts(swapped) if "beats Mueggler" in x["claim"]}
+    assert w == {"predecessor": "fails", "lifetime_only": "holds"}
+
+
+def test_a_policy_not_run_is_not_checked():
+    v = cdm_verdicts(_cdm(80, 78, {"mueggler": (70, 50), "acc_1ms": (20, 40), "acc_30ms": (60, 30)}))
+    sec = [x for x in v if x["display"] == "lifetime_only"]
+    assert [x["status"] for x in sec] == ["not checked"]
+    with pytest.raises(ValueError, match="display"):
+        cdm_verdicts(_cdm(80, 78, {}), displays=("nope",))
+
+
+def test_real_claim_under_both_policies_and_the_headline():
+    real = {"r": {"proposed": {"median": {"c": 70.0}}, "mueggler": {"median": {"c": 60.0}},
+                  "proposed_noclear": {"median": {"c": 50.0}}, "mueggler_noclear": {"median": {"c": 55.0}},
+                  "acc_30ms": {"median": {"c": 65.0}}, "mueggler_t0": {"median": {"c": 99.0}}}}
+    v = real_verdicts(real)
+    st = {x["display"]: x for x in v}
+    assert st["predecessor"]["status"] == "holds"  # the diagnostic 99 is not ranked
+    assert st["lifetime_only"]["status"] == "fails" and "best: acc_30ms" in st["lifetime_only"]["evidence"]
+    assert "proposed 50.0" in st["lifetime_only"]["evidence"]
+    cdm = _two_policies(((88, 89), (40, 86)), ((74, 54), (43, 62)))
+    summ = display_summary(cdm_verdicts(cdm) + v)
+    assert summ["primary"] == "predecessor"
+    pol = summ["policies"]
+    assert (pol["predecessor"]["holds"], pol["predecessor"]["fails"]) == (4, 0)
+    assert (pol["lifetime_only"]["holds"], pol["lifetime_only"]["fails"]) == (0, 4)
+    text = summ["text"]
+    assert "primary comparison uses the predecessor display" in text and "fork" in text
+    assert "lifetime-only display (nothing cleared), 0 of 4 CDM claims hold and 4 fail" in text
+    assert "scene, vs exact: slow 74.0 vs 43.0, fast 54.0 vs 62.0" in text
+    assert "r, vs c: 70.0 vs 60.0" in text
