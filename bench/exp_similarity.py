@@ -251,7 +251,9 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
         ax.set_ylabel(f"CDM vs {ref}", fontsize=8)
         ax.set_ylim(0, 100)
     axes[-1, 0].set_xlabel("time (s)")
-    axes[0, 0].legend(fontsize=7, ncol=3)
+    # below the plots: with both display policies there are too many lines for a legend inside
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=7, frameon=False)
     fig.suptitle(f"{scene}: similarity over time (shaded: {', '.join(sections)} sections; solid: "
                  f"{DISPLAY_LABELS[PRIMARY_DISPLAY]}, primary; dashed: other display)", fontsize=9)
     paths.append(save_figure(fig, out_dir / f"similarity_{scene}_over_time.png"))
@@ -263,7 +265,7 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
         for c, name in enumerate(names):
             ax = axes[r, c]
             data = [np.asarray(table[ref][m])[frame_section == name] for m in methods]
-            bp = ax.boxplot(data, patch_artist=True, widths=0.6)
+            bp = ax.boxplot(data, patch_artist=True, widths=0.6, medianprops={"color": "k"})
             for patch, m in zip(bp["boxes"], methods):
                 base, display = split_key(m)
                 patch.set_facecolor(METHOD_COLOURS.get(base, "w"))
@@ -273,9 +275,10 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
             ax.set_xticks(range(1, len(methods) + 1), [_short(m) for m in methods], fontsize=7)
             ax.set_title(f"{name} section, vs {ref}", fontsize=9)
             ax.set_ylim(0, 100)
-    fig.suptitle(f"{scene}: CDM per section. Plain boxes: {DISPLAY_LABELS[PRIMARY_DISPLAY]} (primary); "
+    fig.suptitle(f"{scene}: CDM per section\nplain boxes: {DISPLAY_LABELS[PRIMARY_DISPLAY]} (primary); "
                  f"hatched ('no clear'): {', '.join(DISPLAY_LABELS[d] for d in DISPLAYS if d != PRIMARY_DISPLAY)}",
                  fontsize=9)
+    fig.subplots_adjust(hspace=0.45)
     paths.append(save_figure(fig, out_dir / f"similarity_{scene}_boxplots.png"))
     return paths
 

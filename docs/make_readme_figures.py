@@ -8,12 +8,14 @@ reuses the output of an earlier ``evedge demo -o DIR`` / ``evedge bench paper -o
 -- and writes into ``docs/img/``:
 
 ``qualitative.png``
-    The qualitative panel (paper figs. 1, 8).
+    The qualitative panel (paper figs. 1, 8), lifetime methods under the primary display policy.
 ``lifetime_hist_stripes_real.png``, ``lifetime_image_stripes_real.png``
     Lifetime histogram and accumulated lifetime images of both methods on the
     real stripes recording (paper figs. 5, 4).
 ``cdm_boxplots.png``
-    CDM box plots per section of the slow-then-fast sequence (paper fig. 9).
+    CDM box plots per section of the slow-then-fast sequence (paper fig. 9):
+    the lifetime methods under the primary display policy (predecessor
+    display, plain boxes) beside the lifetime-only display (hatched, "no clear").
 ``ransac_fmeasure.png``
     RANSAC study, F-measure of the inlier decision against timestamp noise,
     global and scattered noise (paper fig. 7).

@@ -203,3 +203,12 @@ def test_real_claim_under_both_policies_and_the_headline():
     assert "lifetime-only display (nothing cleared), 0 of 4 CDM claims hold and 4 fail" in text
     assert "scene, vs exact: slow 74.0 vs 43.0, fast 54.0 vs 62.0" in text
     assert "r, vs c: 70.0 vs 60.0" in text
+
+
+def test_real_claim_names_the_favourable_fixed_count():
+    real = {"r": {"proposed": {"median": {"c": 47.0}}, "mueggler": {"median": {"c": 7.0}},
+                  "acc_30ms": {"median": {"c": 36.0}}, "acc_count": {"median": {"c": 49.0}}}}
+    v = real_verdicts(real, displays=PRIMARY_ONLY)[0]
+    assert v["status"] == "fails"
+    assert "best: acc_count (its count is set from the Canny maps' size" in v["evidence"]
+    assert "without it the best is proposed" in v["evidence"]
