@@ -123,5 +123,5 @@ def _plot(out_dir: Path, name: str, times, table) -> Path:
         ax.set_ylim(0, 100)
     axes[0][0].legend(fontsize=7)
     fig.suptitle(f"lifetime methods shown with the {DISPLAY_LABELS[PRIMARY_DISPLAY]} (primary policy)",
-                 fontsize=9)
+                 fontsize=9, y=1.03)
     return save_figure(fig, out_dir / f"real_{name}.png")
