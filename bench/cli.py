@@ -13,6 +13,9 @@ _OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_
 _QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
 _NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
 _SEED = click.option("--seed", type=int, default=0, show_default=True, help="Seed of simulations and RANSAC study.")
+_DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor", "lifetime_only"]), multiple=True,
+                        help="Display policy of the lifetime methods (repeatable; default both). predecessor: "
+                             "clear the pixel behind each event (primary); lifetime_only: nothing cleared.")
 
 
 @click.group()
@@ -85,11 +88,14 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
 @_NOPROG
 @_SEED
 @click.option("--scene", default="shapes_translation", show_default=True, help="Scene in scenes/.")
-def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str) -> None:
+@_DISPLAY
+def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str, displays: tuple) -> None:
     """CDM over time against Canny and exact edges, box plots per section (paper fig. 9)."""
     from .exp_similarity import run_similarity
+    from .methods import DISPLAYS
 
-    res = run_similarity(out, scene=scene, quick=quick, progress=not no_progress, seed=seed)
+    res = run_similarity(out, scene=scene, quick=quick, progress=not no_progress, seed=seed,
+                         displays=tuple(displays) or DISPLAYS)
     click.echo("\n".join(res["figures"]))
 
 
@@ -111,11 +117,13 @@ def qualitative(out: Path, quick: bool, no_progress: bool) -> None:
 @_NOPROG
 @click.option("--path", type=click.Path(exists=True, path_type=Path), default=None,
               help="Recording with frames (default ../shared/realdata/slider_depth).")
-def real(out: Path, quick: bool, no_progress: bool, path: Path | None) -> None:
+@_DISPLAY
+def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays: tuple) -> None:
     """CDM against Canny at the real frames that fall inside the events."""
     from .exp_real import run_real
+    from .methods import DISPLAYS
 
-    res = run_real(out, path=path, quick=quick, progress=not no_progress)
+    res = run_real(out, path=path, quick=quick, progress=not no_progress, displays=tuple(displays) or DISPLAYS)
     click.echo("\n".join(res["figures"]))
 
 

@@ -133,3 +133,20 @@ def test_cli_ransac_and_unknown_experiment(tmp_path):
     assert (tmp_path / "ransac_study.json").exists()
     with pytest.raises(ValueError, match="unknown experiments"):
         run_paper(tmp_path, experiments=("nope",))
+
+
+def test_cli_real_with_one_display_policy(moving_edge, tmp_path):
+    from evedge.io import write_ecd
+
+    folder = write_ecd(tmp_path / "rec", moving_edge)
+    r = CliRunner().invoke(bench, ["real", "-o", str(tmp_path / "out"), "--path", str(folder), "--quick",
+                                   "--no-progress", "--display", "lifetime_only"])
+    assert r.exit_code == 0, r.output
+    data = json.loads(next((tmp_path / "out").glob("real_*.json")).read_text())
+    res = next(iter(data["recordings"].values()))
+    assert set(res["displays"]["policies"]) == {"lifetime_only"}
+    methods = set(next(iter(res["cdm"].values())))
+    assert {"proposed_noclear", "mueggler_noclear", "acc_1ms"} <= methods
+    assert not methods & {"proposed", "mueggler"}
+    r = CliRunner().invoke(bench, ["real", "-o", str(tmp_path / "o2"), "--display", "nope"])
+    assert r.exit_code != 0 and "nope" in r.output
