@@ -321,3 +321,57 @@ def _render_polygons(out, edge, acc, width, height, px, py, starts, values, back
                     out[row + c] += cov * delta
                     if edge_tol < cov < 1.0 - edge_tol:
                         edge[row + c] = True
+
+
+@njit(cache=True)
+def _shape_boxes(width, height, px, py, starts, cx, cy, cr, boxes):
+    """Boxes ``(r0, r1, c0, c1)`` (half-open, clipped) outside which the shapes write nothing.
+
+    One box per polygon (vertices ``px/py[starts[k]:starts[k + 1]]``, image
+    coordinates) then one per disk; each encloses, with a margin of one pixel,
+    what :func:`_render_polygons` and :func:`_render_disk` touch (their loops
+    stay inside the shape's bounding box in pixel-corner coordinates).
+    Written flattened into ``boxes``; returns the number of boxes.
+    """
+    n = 0
+    for k in range(starts.shape[0] - 1):
+        xmin = 1e300
+        xmax = -1e300
+        ymin = 1e300
+        ymax = -1e300
+        for i in range(starts[k], starts[k + 1]):
+            xmin = min(xmin, px[i])
+            xmax = max(xmax, px[i])
+            ymin = min(ymin, py[i])
+            ymax = max(ymax, py[i])
+        _put_box(boxes, n, width, height, xmin, xmax, ymin, ymax)
+        n += 1
+    for k in range(cx.shape[0]):
+        _put_box(boxes, n, width, height, cx[k] - cr[k], cx[k] + cr[k], cy[k] - cr[k], cy[k] + cr[k])
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def _put_box(boxes, n, width, height, xmin, xmax, ymin, ymax):
+    # pixel c spans [c - 0.5, c + 0.5]; one pixel of margin on every side
+    r0 = max(0, min(height, int(math.floor(ymin + 0.5)) - 1))
+    r1 = max(0, min(height, int(math.ceil(ymax + 0.5)) + 2))
+    c0 = max(0, min(width, int(math.floor(xmin + 0.5)) - 1))
+    c1 = max(0, min(width, int(math.ceil(xmax + 0.5)) + 2))
+    if r0 >= r1 or c0 >= c1:
+        r0 = r1 = c0 = c1 = 0
+    boxes[4 * n] = r0
+    boxes[4 * n + 1] = r1
+    boxes[4 * n + 2] = c0
+    boxes[4 * n + 3] = c1
+
+
+@njit(cache=True)
+def _fill_boxes(out, width, boxes, n_boxes, value):
+    """Set every pixel of the first ``n_boxes`` boxes (as :func:`_shape_boxes`) of flat ``out`` to ``value``."""
+    for k in range(n_boxes):
+        c0 = boxes[4 * k + 2]
+        c1 = boxes[4 * k + 3]
+        for r in range(boxes[4 * k], boxes[4 * k + 1]):
+            out[r * width + c0:r * width + c1] = value

@@ -71,51 +71,87 @@ def _max_log_gradient(img, width, height, eps):
 
 
 @njit(cache=True)
-def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
-             seq, jitter_s, jitter_seed, fill, cand, n_cand, out_pix, out_t_true, out_t, out_p):
-    """Events of every pixel between samples ``(t0, i0)`` and ``(t1, i1)`` (linear intensity).
+def _box_spans(boxes, n_boxes, width, height, out):
+    """Row-major flat index ranges covering the union of boxes; returns the number of ranges.
 
-    The log intensity ``L = log(I + eps)`` is interpolated linearly in time
-    between the samples; each crossing of ``lref + cpos`` (ON) or
-    ``lref - cneg`` (OFF) is an event at the interpolated crossing time, and
-    moves ``lref`` by one threshold (several crossings per interval allowed).
-    A crossing less than ``refractory_s`` after the pixel's last emitted event
-    is dropped (``lref`` still moves). The emitted time adds a half-normal
-    latency ``jitter_s |N(0, 1)|`` hashed from (pixel, per-pixel event count).
+    ``boxes`` is ``(r0, r1, c0, c1)`` (half-open, clipped to the image) per
+    box, flattened; ``out`` receives ``(start, stop)`` pairs, flattened, and
+    needs room for ``2 * height * n_boxes`` values. The ranges are disjoint and
+    in increasing order (the pixel visiting order of a full scan).
+    """
+    lo = np.empty(n_boxes, dtype=np.int64)
+    hi = np.empty(n_boxes, dtype=np.int64)
+    n = 0
+    for r in range(height):
+        m = 0
+        for k in range(n_boxes):
+            if boxes[4 * k] <= r < boxes[4 * k + 1] and boxes[4 * k + 2] < boxes[4 * k + 3]:
+                # insertion sort by start column (a handful of boxes)
+                j = m
+                while j > 0 and lo[j - 1] > boxes[4 * k + 2]:
+                    lo[j] = lo[j - 1]
+                    hi[j] = hi[j - 1]
+                    j -= 1
+                lo[j] = boxes[4 * k + 2]
+                hi[j] = boxes[4 * k + 3]
+                m += 1
+        j = 0
+        while j < m:
+            a = lo[j]
+            b = hi[j]
+            j += 1
+            while j < m and lo[j] <= b:
+                b = max(b, hi[j])
+                j += 1
+            if n > 0 and out[2 * n - 1] == r * width + a:
+                out[2 * n - 1] = r * width + b  # contiguous with the previous range (full rows)
+            else:
+                out[2 * n] = r * width + a
+                out[2 * n + 1] = r * width + b
+                n += 1
+    return n
 
-    ``e_hi = exp(lref + cpos)`` and ``e_lo = exp(lref - cneg)`` let most pixels
-    be skipped without a logarithm. With ``fill`` False nothing is written or
-    mutated except the scratch ``cand``, which receives the indices of the
-    pixels passing the pre-test; the fill pass (``fill`` True) then visits only
-    ``cand[:n_cand]`` (two-pass sizing: count, then fill).
 
-    Returns ``(n_events, n_moved, n_cand, max_dl)``: the events emitted, the
-    pixels whose reference level moved (non-zero ``n_moved`` with
-    ``n_events == 0`` when all crossings fell in refractory periods: the fill
-    pass must still run), the candidates written to ``cand`` and the largest
-    ``|Delta L|`` over the image (the last two from the count pass only; the
-    sampler uses ``max_dl`` to accept or reject the step, as
-    :func:`_max_log_change`).
+@njit(cache=True)
+def _scan(i0, i1, eps, e_hi, e_lo, spans, n_spans, cand):
+    """Pre-test of the pixels in ``spans`` (flat ranges, as :func:`_box_spans`).
+
+    Writes to ``cand`` the pixels whose new intensity may cross a threshold
+    and returns ``(n_cand, max_dl)``: their number and the largest
+    ``|Delta L|`` over the scanned pixels. Pixels outside the spans must have
+    ``i1 == i0`` (unchanged pixels cannot cross and do not change ``max_dl``).
+    """
+    m = 0
+    ratio = 1.0
+    for s in range(n_spans):
+        for i in range(spans[2 * s], spans[2 * s + 1]):
+            if i1[i] == i0[i]:
+                # unchanged pixel: it was inside its thresholds at i0, so it still is (most pixels)
+                continue
+            a = i1[i] + eps
+            ratio = _widen_ratio(ratio, a, i0[i] + eps)
+            # conservative pre-test; the decision itself is made on logarithms in _crossings
+            if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
+                continue
+            cand[m] = i
+            m += 1
+    return m, math.log(ratio)
+
+
+@njit(cache=True)
+def _crossings(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
+               seq, jitter_s, jitter_seed, fill, cand, n_cand, out_pix, out_t_true, out_t, out_p):
+    """Events of the candidate pixels ``cand[:n_cand]`` (see :func:`_convert`); returns ``(n_events, n_moved)``.
+
+    With ``fill`` False nothing is written (count pass); with ``fill`` True
+    the events are written and the pixel state is updated.
     """
     n = 0
     n_moved = 0
-    m = 0
-    ratio = 1.0
     span = t1 - t0
-    for j in range(n_cand if fill else i0.shape[0]):
-        i = cand[j] if fill else j
-        if not fill and i1[i] == i0[i]:
-            # unchanged pixel: it was inside its thresholds at i0, so it still is (most pixels)
-            continue
+    for j in range(n_cand):
+        i = cand[j]
         a = i1[i] + eps
-        if not fill:
-            ratio = _widen_ratio(ratio, a, i0[i] + eps)
-        # conservative pre-test; the decision itself is made on logarithms below
-        if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
-            continue
-        if not fill:
-            cand[m] = i
-            m += 1
         l1 = math.log(a)
         l0 = math.log(i0[i] + eps)
         lr = lref[i]
@@ -153,7 +189,47 @@ def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refracto
             e_lo[i] = math.exp(lr - cn)
             last_t[i] = last
             seq[i] = k
-    return n, n_moved, m, math.log(ratio)
+    return n, n_moved
+
+
+@njit(cache=True)
+def _convert(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
+             seq, jitter_s, jitter_seed, fill, cand, n_cand, out_pix, out_t_true, out_t, out_p):
+    """Events of every pixel between samples ``(t0, i0)`` and ``(t1, i1)`` (linear intensity).
+
+    The log intensity ``L = log(I + eps)`` is interpolated linearly in time
+    between the samples; each crossing of ``lref + cpos`` (ON) or
+    ``lref - cneg`` (OFF) is an event at the interpolated crossing time, and
+    moves ``lref`` by one threshold (several crossings per interval allowed).
+    A crossing less than ``refractory_s`` after the pixel's last emitted event
+    is dropped (``lref`` still moves). The emitted time adds a half-normal
+    latency ``jitter_s |N(0, 1)|`` hashed from (pixel, per-pixel event count).
+
+    ``e_hi = exp(lref + cpos)`` and ``e_lo = exp(lref - cneg)`` let most pixels
+    be skipped without a logarithm. With ``fill`` False nothing is written or
+    mutated except the scratch ``cand``, which receives the indices of the
+    pixels passing the pre-test; the fill pass (``fill`` True) then visits only
+    ``cand[:n_cand]`` (two-pass sizing: count, then fill).
+
+    Returns ``(n_events, n_moved, n_cand, max_dl)``: the events emitted, the
+    pixels whose reference level moved (non-zero ``n_moved`` with
+    ``n_events == 0`` when all crossings fell in refractory periods: the fill
+    pass must still run), the candidates written to ``cand`` and the largest
+    ``|Delta L|`` over the image (the last two from the count pass only; the
+    sampler uses ``max_dl`` to accept or reject the step, as
+    :func:`_max_log_change`).
+    """
+    if fill:
+        n, n_moved = _crossings(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s, seq,
+                                jitter_s, jitter_seed, True, cand, n_cand, out_pix, out_t_true, out_t, out_p)
+        return n, n_moved, 0, 0.0
+    spans = np.empty(2, dtype=np.int64)
+    spans[0] = 0
+    spans[1] = i0.shape[0]
+    m, max_dl = _scan(i0, i1, eps, e_hi, e_lo, spans, 1, cand)
+    n, n_moved = _crossings(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s, seq,
+                            jitter_s, jitter_seed, False, cand, m, out_pix, out_t_true, out_t, out_p)
+    return n, n_moved, m, max_dl
 
 
 @njit(cache=True)

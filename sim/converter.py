@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _convert, _max_log_gradient, _noise, _noise_first_arrivals
+from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
 from evedge.events import EVENT_DTYPE
@@ -186,7 +186,19 @@ class EventConverter:
         self.cneg = np.maximum(cn, p.min_contrast)
         self._c_min = float(min(self.cpos.min(), self.cneg.min()))
         self.t = 0.0
-        self._i = self._render(0.0)
+        # renderers that can redraw into a buffer (the analytic ones) reuse two buffers, and report
+        # boxes outside which the image is the background: the scan visits only those
+        self._into = callable(getattr(self.renderer, "intensity_into", None))
+        self._full_span = np.array([0, npix], dtype=np.int64)
+        self._spans = np.empty(0, dtype=np.int64)
+        if self._into:
+            self._bufs = [np.empty(npix), np.empty(npix)]
+            self._boxes = [None, None]
+            self._cur = 0
+            self._boxes[0] = self._draw_into(0, 0.0)
+            self._i = self._bufs[0]
+        else:
+            self._i = self._render(0.0)
         self._flow = None
         self.lref = np.log(self._i + p.log_eps)
         self.e_hi = np.exp(self.lref + self.cpos)
@@ -219,6 +231,32 @@ class EventConverter:
                              f"expected ({self.height}, {self.width})")
         return np.ascontiguousarray(img, dtype=np.float64).ravel()
 
+    def _draw_into(self, k: int, t_s: float) -> np.ndarray:
+        """Render ``t_s`` into buffer ``k`` (``intensity_into``); returns and remembers its boxes."""
+        boxes = np.ascontiguousarray(self.renderer.intensity_into(t_s, self._bufs[k], self._boxes[k]),
+                                     dtype=np.int64)
+        if boxes.ndim != 1 or boxes.shape[0] % 4:
+            raise ValueError(f"renderer {type(self.renderer).__name__}.intensity_into returned boxes of shape "
+                             f"{boxes.shape}, expected (4 k,)")
+        self._boxes[k] = boxes
+        return boxes
+
+    def _candidate(self, t_s: float):
+        """Sample ``t_s``: ``(image, spans, n_spans)``, the spans covering every pixel that may differ from ``self._i``."""
+        if not self._into:
+            return self._render(t_s), self._full_span, 1
+        k = 1 - self._cur
+        boxes = np.concatenate([self._boxes[self._cur], self._draw_into(k, t_s)])
+        nb = boxes.shape[0] // 4
+        if self._spans.shape[0] < 2 * self.height * nb:
+            self._spans = np.empty(2 * self.height * nb, dtype=np.int64)
+        return self._bufs[k], self._spans, _box_spans(boxes, nb, self.width, self.height, self._spans)
+
+    def _accept(self, i1: np.ndarray) -> None:
+        if self._into:
+            self._cur = 1 - self._cur
+        self._i = i1
+
     def _propose(self) -> float:
         p = self.params
         dt = 1.0 / p.min_rate_hz
@@ -239,17 +277,17 @@ class EventConverter:
             if vmax > 0 and grad > 0:
                 dt = max(p.min_step_s, min(dt, limit / (vmax * grad)))
             t1 = min(self.t + dt, self.duration_s)
-            i1 = self._render(t1)
-            self._interval(self.t, t1, self._i, i1, self._count(self.t, t1, self._i, i1))
+            i1, spans, n_spans = self._candidate(t1)
+            n_cand, _ = self._scan(self._i, i1, spans, n_spans)
+            self._interval(self.t, t1, self._i, i1, n_cand)
             self.t = t1
-            self._i = i1
+            self._accept(i1)
             self.n_samples += 1
             return
         while True:
             t1 = min(self.t + dt, self.duration_s)
-            i1 = self._render(t1)
-            counted = self._count(self.t, t1, self._i, i1)  # also measures max |Delta L|
-            dl = counted[3]
+            i1, spans, n_spans = self._candidate(t1)
+            n_cand, dl = self._scan(self._i, i1, spans, n_spans)  # also measures max |Delta L|
             if dl <= limit or (t1 - self.t) <= p.min_step_s * 1.0000001:
                 break
             self.n_rejected += 1
@@ -258,9 +296,9 @@ class EventConverter:
         grow = 2.0 if dl <= 0 else min(2.0, 0.9 * limit / dl)
         if t1 < self.duration_s:  # the clipped last step says nothing about the next one
             self._dt = step * grow
-        self._interval(self.t, t1, self._i, i1, counted)
+        self._interval(self.t, t1, self._i, i1, n_cand)
         self.t = t1
-        self._i = i1
+        self._accept(i1)
         self.n_samples += 1
 
     def _kernel_args(self, t0, t1, i0, i1):
@@ -268,30 +306,30 @@ class EventConverter:
         return (i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg,
                 self.last_t, p.refractory_us * 1e-6, self.seq, p.jitter_us * 1e-6, self._jitter_seed)
 
-    def _count(self, t0, t1, i0, i1):
-        """First pass: ``(n_events, n_moved, n_cand, max |Delta L|)``; mutates nothing but scratch."""
-        empty_f = np.empty(0)
-        return _convert(*self._kernel_args(t0, t1, i0, i1), False, self._cand, 0, np.empty(0, dtype=np.int64),
-                        empty_f, empty_f, np.empty(0, dtype=np.bool_))
+    def _scan(self, i0, i1, spans, n_spans):
+        """Pre-test pass: ``(n_cand, max |Delta L|)``, candidates in ``self._cand``; mutates nothing else."""
+        return _scan(i0, i1, self.params.log_eps, self.e_hi, self.e_lo, spans, n_spans, self._cand)
 
-    def _interval(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray, counted) -> None:
+    def _interval(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray, n_cand: int) -> None:
         p = self.params
         args = self._kernel_args(t0, t1, i0, i1)
         empty_i = np.empty(0, dtype=np.int64)
         empty_f = np.empty(0)
         empty_b = np.empty(0, dtype=np.bool_)
-        n, moved, n_cand, _ = counted
+        n = moved = 0
+        if n_cand:
+            # two-pass sizing over the candidates: count, then fill
+            n, moved = _crossings(*args, False, self._cand, n_cand, empty_i, empty_f, empty_f, empty_b)
         if moved:
             pix = np.empty(n, dtype=np.int64)
             t_true = np.empty(n)
             t_emit = np.empty(n)
             pol = np.empty(n, dtype=np.bool_)
-            _convert(*args, True, self._cand, n_cand, pix, t_true, t_emit, pol)
+            _crossings(*args, True, self._cand, n_cand, pix, t_true, t_emit, pol)
         if n:
             # geometric truth is computed per flush, in one vectorised call (cheaper than per sample)
             truth = None if self._geometric else self._truth(pix, t_true, t0, t1, i0, i1)
-            self._pending.append(dict(pix=pix, t=t_emit, t_true=t_true, p=pol, noise=np.zeros(n, dtype=np.bool_),
-                                      truth=truth))
+            self._pending.append((pix, t_emit, t_true, pol, truth))
         else:
             self._flow = None
         if p.noise_rate_hz > 0 and t1 > self._noise_until:
@@ -306,8 +344,7 @@ class EventConverter:
                 tn = np.empty(m)
                 pol = np.empty(m, dtype=np.bool_)
                 _noise(*nargs, True, pix, tn, pol)
-                self._pending.append(dict(pix=pix, t=tn, t_true=tn, p=pol, noise=np.ones(m, dtype=np.bool_),
-                                          truth=empty_truth(m)))
+                self._pending.append((pix, tn, tn, pol, False))  # False: noise, no truth
 
     def _truth(self, pix, t_true, t0=None, t1=None, i0=None, i1=None) -> np.ndarray:
         x = pix % self.width
@@ -344,36 +381,51 @@ class EventConverter:
 
     # ------------------------------------------------------------------ output
     def _flush(self, cut_us: int | None) -> tuple[np.ndarray, np.ndarray]:
+        # pending parts: (pix, t_emit, t_true, p, truth) with truth None (geometric truth still to
+        # compute), False (noise) or a TRUTH_DTYPE array
         if not self._pending:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
-        pix = np.concatenate([c["pix"] for c in self._pending])
-        t = np.concatenate([c["t"] for c in self._pending])
-        t_true = np.concatenate([c["t_true"] for c in self._pending])
-        pol = np.concatenate([c["p"] for c in self._pending])
-        noise = np.concatenate([c["noise"] for c in self._pending])
-        todo = np.concatenate([np.full(c["pix"].shape[0], c["truth"] is None) for c in self._pending])
-        truth = np.concatenate([empty_truth(c["pix"].shape[0]) if c["truth"] is None else c["truth"]
-                                for c in self._pending])
-        if np.any(todo):
-            truth[todo] = self._truth(pix[todo], t_true[todo])
+        parts = self._pending
+        self._pending = []
+        pix, t, t_true, pol = (np.concatenate([c[k] for c in parts]) for k in range(4))
+        if all(c[4] is None for c in parts):
+            truth = self._truth(pix, t_true)
+        else:
+            truth = empty_truth(pix.shape[0])
+            todo = np.zeros(pix.shape[0], dtype=np.bool_)
+            start = 0
+            for c in parts:
+                stop = start + c[0].shape[0]
+                if c[4] is None:
+                    todo[start:stop] = True
+                elif c[4] is not False:
+                    truth[start:stop] = c[4]
+                start = stop
+            if np.any(todo):
+                truth[todo] = self._truth(pix[todo], t_true[todo])
         t_us = np.rint(t * 1e6).astype(np.int64)
         if cut_us is None:
             done = t_us <= int(round(self.duration_s * 1e6))
-            keep = np.zeros_like(done)
         else:
             done = t_us < cut_us
             keep = ~done
-        self._pending = []
-        if np.any(keep):
-            self._pending.append(dict(pix=pix[keep], t=t[keep], t_true=t_true[keep], p=pol[keep], noise=noise[keep],
-                                      truth=truth[keep]))
-        pix, t, pol, noise, truth, t_us = pix[done], t[done], pol[done], noise[done], truth[done], t_us[done]
+            if np.any(keep):
+                self._pending.append((pix[keep], t[keep], t_true[keep], pol[keep], truth[keep]))
+        if not np.all(done):
+            pix, t, pol, truth, t_us = pix[done], t[done], pol[done], truth[done], t_us[done]
         # time order; ties by pixel, then exact time (a signal and a noise event of one pixel never
         # share an exact float time, so the order is total and independent of the chunking)
-        order = np.lexsort((t, t_us * (self.width * self.height) + pix))
+        key = t_us * (self.width * self.height) + pix
+        # the parts are nearly sorted runs: a stable sort of the one key is fast, and equals the
+        # lexsort below when no key repeats
+        order = np.argsort(key, kind="stable")
+        sorted_key = key[order]
+        if np.any(sorted_key[1:] == sorted_key[:-1]):
+            order = np.lexsort((t, key))
         ev = np.empty(order.shape[0], dtype=EVENT_DTYPE)
-        ev["x"] = pix[order] % self.width
-        ev["y"] = pix[order] // self.width
+        pix_o = pix[order]
+        ev["x"] = pix_o % self.width
+        ev["y"] = pix_o // self.width
         ev["t"] = t_us[order]
         ev["p"] = pol[order]
         return ev, truth[order]

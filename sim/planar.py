@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._coverage import _render_disk, _render_polygons, _render_stripes
+from ._coverage import _fill_boxes, _render_disk, _render_polygons, _render_stripes, _shape_boxes
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 
@@ -88,8 +88,10 @@ class _CoverageRenderer:
     width: int
     height: int
     background: float
+    _edge_scratch: np.ndarray | None = None
 
-    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> None:
+    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> np.ndarray:
+        """Draw into ``out``/``edge``; return the boxes (flat int64, 4 per box) outside which nothing was written."""
         raise NotImplementedError
 
     def _render(self, t_s: float):
@@ -98,6 +100,39 @@ class _CoverageRenderer:
         edge = np.zeros(w * h, dtype=np.bool_)
         self._draw(t_s, out, edge)
         return out.reshape(h, w), edge.reshape(h, w)
+
+    def intensity_into(self, t_s: float, out: np.ndarray, dirty: np.ndarray | None) -> np.ndarray:
+        """Render the intensity at ``t_s`` into the flat float64 buffer ``out``, reusing it.
+
+        Parameters
+        ----------
+        t_s : float
+        out : numpy.ndarray
+            Flat (H * W) float64 buffer, overwritten.
+        dirty : numpy.ndarray or None
+            What the previous ``intensity_into`` into ``out`` returned (only
+            those boxes are reset to the background), or None when ``out``
+            holds anything else (it is filled).
+
+        Returns
+        -------
+        numpy.ndarray
+            Boxes (flat int64, ``r0, r1, c0, c1`` half-open per box) outside
+            which ``out`` equals the background exactly. ``out`` holds the
+            same bytes as :meth:`intensity` (same kernels, same order).
+        """
+        if dirty is None:
+            out.fill(self.background)
+        else:
+            _fill_boxes(out, self.width, dirty, dirty.shape[0] // 4, self.background)
+        return self._draw(t_s, out, self._edge_buffer())
+
+    def _edge_buffer(self) -> np.ndarray:
+        # edge output of intensity_into, never read: the kernels only set pixels to True, so it
+        # needs no reset
+        if self._edge_scratch is None:
+            self._edge_scratch = np.zeros(self.width * self.height, dtype=np.bool_)
+        return self._edge_scratch
 
     def intensity(self, t_s: float) -> np.ndarray:
         return self._render(t_s)[0]
@@ -154,21 +189,25 @@ class ShapesRenderer(_CoverageRenderer):
         self._allx = np.concatenate([self._px, self._cx])
         self._ally = np.concatenate([self._py, self._cy])
 
-    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> None:
+    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> np.ndarray:
         w, h = self.width, self.height
         # one motion evaluation for all vertices and circle centres
         x, y = self.motion.to_image(self._allx, self._ally, t_s)
         npv = self._px.shape[0]
+        px, py = np.ascontiguousarray(x[:npv]), np.ascontiguousarray(y[:npv])
+        cx, cy = np.ascontiguousarray(x[npv:]), np.ascontiguousarray(y[npv:])
         if self.polygons:
-            _render_polygons(out, edge, self._acc, w, h, np.ascontiguousarray(x[:npv]), np.ascontiguousarray(y[:npv]),
-                             self._pstart, self._pvalue, self.background, EDGE_AREA_TOL)
+            _render_polygons(out, edge, self._acc, w, h, px, py, self._pstart, self._pvalue, self.background,
+                             EDGE_AREA_TOL)
         if self.circles:
-            cx, cy = x[npv:], y[npv:]
             for k, c in enumerate(self.circles):
                 _render_disk(out, edge, w, h, float(cx[k]), float(cy[k]), c.radius_px, c.intensity,
                              self.background, EDGE_AREA_TOL)
         if self._may_overlap:
             np.clip(out, 0.0, 1.0, out=out)
+        boxes = np.empty(4 * (len(self.polygons) + len(self.circles)), dtype=np.int64)
+        _shape_boxes(w, h, px, py, self._pstart, cx, cy, self._cr, boxes)
+        return boxes
 
     def flow(self, t_s: float) -> np.ndarray:
         yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
@@ -252,13 +291,21 @@ class StripesRenderer(_CoverageRenderer):
                 raise ValueError(f"StripesRenderer: layer {k} rows {layer.rows} overlap another layer")
             self._layer_of_row[r0:r1] = k
 
-    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> None:
+    def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> np.ndarray:
         w, h = self.width, self.height
         for layer in self.layers:
             nx, ny = layer.normal
             offset = nx * layer.velocity_px_s[0] * t_s + ny * layer.velocity_px_s[1] * t_s + layer.phase_px
             _render_stripes(out, edge, w, layer.rows[0], min(layer.rows[1], h), nx, ny, offset,
                             layer.period_px, layer.duty, layer.dark, layer.light, EDGE_AREA_TOL)
+        return np.array([0, h, 0, w], dtype=np.int64)  # stripes change everywhere
+
+    def intensity_into(self, t_s: float, out: np.ndarray, dirty: np.ndarray | None) -> np.ndarray:
+        """As :meth:`_CoverageRenderer.intensity_into`; the stripes overwrite their rows, so no reset."""
+        if dirty is None:
+            out.fill(self.background)
+        # rows of no layer are never written: they keep the background of the first fill
+        return self._draw(t_s, out, self._edge_buffer())
 
     def flow(self, t_s: float) -> np.ndarray:
         out = np.zeros((2, self.height, self.width))
