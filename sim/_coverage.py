@@ -375,3 +375,38 @@ def _fill_boxes(out, width, boxes, n_boxes, value):
         c1 = boxes[4 * k + 3]
         for r in range(boxes[4 * k], boxes[4 * k + 1]):
             out[r * width + c0:r * width + c1] = value
+
+
+@njit(cache=True)
+def _draw_shapes(out, edge, acc, width, height, qx, qy, n_poly_vertices, starts, values, radii, circle_values,
+                 background, edge_tol, clip, center_x, center_y, cos_t, sin_t, shift_x, shift_y, px, py, boxes):
+    """All shapes of a :class:`~evedge.sim.planar.ShapesRenderer` in one call (the per-sample path).
+
+    Moves the object points ``(qx, qy)`` (polygon vertices, then circle
+    centres) to the image by ``c + R(theta) (q - c) + s`` (the arithmetic of
+    :meth:`~evedge.sim.motion.PlanarMotion.to_image`, term by term), draws the
+    polygons (:func:`_render_polygons`) then the disks (:func:`_render_disk`),
+    clips to [0, 1] when ``clip`` and writes the boxes of :func:`_shape_boxes`.
+    ``px``/``py`` are scratch of the length of ``qx``. Returns the number of boxes.
+    """
+    for i in range(qx.shape[0]):
+        dx = qx[i] - center_x
+        dy = qy[i] - center_y
+        px[i] = center_x + cos_t * dx - sin_t * dy + shift_x
+        py[i] = center_y + sin_t * dx + cos_t * dy + shift_y
+    vx = px[:n_poly_vertices]
+    vy = py[:n_poly_vertices]
+    cx = px[n_poly_vertices:]
+    cy = py[n_poly_vertices:]
+    if values.shape[0] > 0:
+        _render_polygons(out, edge, acc, width, height, vx, vy, starts, values, background, edge_tol)
+    for k in range(radii.shape[0]):
+        _render_disk(out, edge, width, height, cx[k], cy[k], radii[k], circle_values[k], background, edge_tol)
+    n = _shape_boxes(width, height, vx, vy, starts, cx, cy, radii, boxes)
+    if clip:
+        for k in range(n):
+            for r in range(boxes[4 * k], boxes[4 * k + 1]):
+                for c in range(boxes[4 * k + 2], boxes[4 * k + 3]):
+                    v = out[r * width + c]
+                    out[r * width + c] = min(1.0, max(0.0, v))
+    return n

@@ -191,6 +191,7 @@ class EventConverter:
         self._into = callable(getattr(self.renderer, "intensity_into", None))
         self._full_span = np.array([0, npix], dtype=np.int64)
         self._spans = np.empty(0, dtype=np.int64)
+        self._box_pair = np.empty(0, dtype=np.int64)
         if self._into:
             self._bufs = [np.empty(npix), np.empty(npix)]
             self._boxes = [None, None]
@@ -209,6 +210,7 @@ class EventConverter:
         self.noise_count = np.zeros(npix, dtype=np.int64)
         self._noise_until = 0.0
         self._cand = np.empty(npix, dtype=np.int64)
+        self._empty = (np.empty(0, dtype=np.int64), np.empty(0), np.empty(0, dtype=np.bool_))
         if p.noise_rate_hz > 0:
             _noise_first_arrivals(p.noise_rate_hz, self._noise_time_seed, self.noise_next)
         self._dt = min(1.0 / p.min_rate_hz, 1e-4)
@@ -246,7 +248,13 @@ class EventConverter:
         if not self._into:
             return self._render(t_s), self._full_span, 1
         k = 1 - self._cur
-        boxes = np.concatenate([self._boxes[self._cur], self._draw_into(k, t_s)])
+        old = self._boxes[self._cur]
+        new = self._draw_into(k, t_s)
+        boxes = self._box_pair
+        if boxes.shape[0] != old.shape[0] + new.shape[0]:
+            boxes = self._box_pair = np.empty(old.shape[0] + new.shape[0], dtype=np.int64)
+        boxes[:old.shape[0]] = old
+        boxes[old.shape[0]:] = new
         nb = boxes.shape[0] // 4
         if self._spans.shape[0] < 2 * self.height * nb:
             self._spans = np.empty(2 * self.height * nb, dtype=np.int64)
@@ -313,9 +321,7 @@ class EventConverter:
     def _interval(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray, n_cand: int) -> None:
         p = self.params
         args = self._kernel_args(t0, t1, i0, i1)
-        empty_i = np.empty(0, dtype=np.int64)
-        empty_f = np.empty(0)
-        empty_b = np.empty(0, dtype=np.bool_)
+        empty_i, empty_f, empty_b = self._empty
         n = moved = 0
         if n_cand:
             # two-pass sizing over the candidates: count, then fill

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._coverage import _fill_boxes, _render_disk, _render_polygons, _render_stripes, _shape_boxes
+from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 
@@ -188,25 +188,18 @@ class ShapesRenderer(_CoverageRenderer):
                                 for k, a in enumerate(centres) for b in centres[:k])
         self._allx = np.concatenate([self._px, self._cx])
         self._ally = np.concatenate([self._py, self._cy])
+        self._cvalue = np.array([c.intensity for c in self.circles], dtype=np.float64)
+        self._qx = np.empty_like(self._allx)  # scratch: image positions of the points
+        self._qy = np.empty_like(self._allx)
 
     def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> np.ndarray:
-        w, h = self.width, self.height
-        # one motion evaluation for all vertices and circle centres
-        x, y = self.motion.to_image(self._allx, self._ally, t_s)
-        npv = self._px.shape[0]
-        px, py = np.ascontiguousarray(x[:npv]), np.ascontiguousarray(y[:npv])
-        cx, cy = np.ascontiguousarray(x[npv:]), np.ascontiguousarray(y[npv:])
-        if self.polygons:
-            _render_polygons(out, edge, self._acc, w, h, px, py, self._pstart, self._pvalue, self.background,
-                             EDGE_AREA_TOL)
-        if self.circles:
-            for k, c in enumerate(self.circles):
-                _render_disk(out, edge, w, h, float(cx[k]), float(cy[k]), c.radius_px, c.intensity,
-                             self.background, EDGE_AREA_TOL)
-        if self._may_overlap:
-            np.clip(out, 0.0, 1.0, out=out)
+        # one motion evaluation for all vertices and circle centres, then one kernel call
+        theta, _, sx, sy, _, _ = self.motion.state(float(t_s))
+        cx, cy = self.motion.center_px
         boxes = np.empty(4 * (len(self.polygons) + len(self.circles)), dtype=np.int64)
-        _shape_boxes(w, h, px, py, self._pstart, cx, cy, self._cr, boxes)
+        _draw_shapes(out, edge, self._acc, self.width, self.height, self._allx, self._ally, self._px.shape[0],
+                     self._pstart, self._pvalue, self._cr, self._cvalue, self.background, EDGE_AREA_TOL,
+                     self._may_overlap, cx, cy, math.cos(theta), math.sin(theta), sx, sy, self._qx, self._qy, boxes)
         return boxes
 
     def flow(self, t_s: float) -> np.ndarray:
@@ -222,11 +215,11 @@ class ShapesRenderer(_CoverageRenderer):
         y = np.asarray(y, dtype=np.float64)
         t_s = np.asarray(t_s, dtype=np.float64)
         m = self.motion
-        theta, _, sx, sy, _, _ = m.state(t_s)
-        vx, vy = m.flow_at(x, y, t_s)
+        theta, w, sx, sy, v0x, v0y = m.state(t_s)
         c, s = np.cos(theta), np.sin(theta)
         cx, cy = m.center_px
         rx, ry = x - cx - sx, y - cy - sy
+        vx, vy = v0x - w * ry, v0y + w * rx  # the motion field, as PlanarMotion.flow_at (one state evaluation)
         qx = np.ascontiguousarray(cx + c * rx + s * ry)  # R(-theta)
         qy = np.ascontiguousarray(cy - s * rx + c * ry)
         onx = np.empty_like(qx)
