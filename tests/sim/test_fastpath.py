@@ -161,3 +161,19 @@ def test_converter_fast_path_equals_plain_renderer():
     assert outs[0][4] and not outs[1][4]
     assert outs[0][:4] == outs[1][:4]
     assert len(outs[0][0]) > 1000
+
+
+@pytest.mark.parametrize("t", [0.0, 0.37, 1.1])
+def test_in_kernel_motion_equals_planar_motion_to_image(t):
+    """The kernel moves the shapes as ``PlanarMotion.to_image``: same image as the shapes moved beforehand."""
+    r = _shapes_renderer()
+    moved = []
+    for p in r.polygons:
+        x, y = r.motion.to_image(p.vertices_px[:, 0], p.vertices_px[:, 1], t)
+        moved.append(Polygon(np.stack([x, y], axis=1), p.intensity))
+    for c in r.circles:
+        x, y = r.motion.to_image(np.array([c.center_px[0]]), np.array([c.center_px[1]]), t)
+        moved.append(Circle((float(x[0]), float(y[0])), c.radius_px, c.intensity))
+    static = ShapesRenderer(r.width, r.height, moved, PlanarMotion(), background=r.background)
+    assert r.intensity(t).tobytes() == static.intensity(0.0).tobytes()
+    assert np.array_equal(r.edges(t), static.edges(0.0))
