@@ -42,6 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._raycast import _cast_rays_kernel
+
 __all__ = ["Box3D", "CameraTrajectory", "MeshRenderer", "FACE_ORDER", "rotation_from_rpy"]
 
 #: Order of ``Box3D.face_intensities``: the face whose outward normal is -x, +x, -y, +y, -z, +z
@@ -285,21 +287,10 @@ def _cast_rays(origin: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndar
     n = len(dirs)
     if n == 0 or len(lo) == 0:
         return np.zeros(n, dtype=np.int64)
-    d = np.where(np.abs(dirs) < 1e-300, 1e-300, dirs)  # no 0 * inf = NaN on axis-parallel rays
-    inv = 1.0 / d
-    t1 = (lo[None, :, :] - origin) * inv[:, None, :]
-    t2 = (hi[None, :, :] - origin) * inv[:, None, :]
-    t_min, t_max = np.minimum(t1, t2), np.maximum(t1, t2)
-    axis = t_min.argmax(axis=2)
-    t_enter = np.take_along_axis(t_min, axis[..., None], axis=2)[..., 0]
-    t_exit = t_max.min(axis=2)
-    t_enter = np.where((t_enter < t_exit) & (t_enter > 0.0), t_enter, np.inf)
-    box = t_enter.argmin(axis=1)
-    rows = np.arange(n)
-    ax = axis[rows, box]
-    # a ray going +axis enters through the -axis face (f = 2 axis), else through +axis
-    face = 2 * ax + (d[rows, ax] < 0)
-    return np.where(np.isfinite(t_enter[rows, box]), 1 + 6 * box + face, 0)
+    out = np.empty(n, dtype=np.int64)
+    _cast_rays_kernel(np.ascontiguousarray(origin, dtype=np.float64), np.ascontiguousarray(dirs, dtype=np.float64),
+                      np.ascontiguousarray(lo, dtype=np.float64), np.ascontiguousarray(hi, dtype=np.float64), out)
+    return out
 
 
 def _mark_segment(mask: np.ndarray, u0: float, v0: float, u1: float, v1: float) -> None:
