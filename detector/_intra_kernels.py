@@ -3,6 +3,20 @@
 Points of a window are past events in coordinates local to the current event:
 ``dx, dy`` (pixel offsets) and ``dt`` (time minus the current time, us). The
 current event itself is the origin and is not stored among them.
+
+Speed (the per-event work of the stream kernel; results are unchanged by all of it):
+
+* the per-event fit (2-means + RANSAC + refit) is one function, :func:`_fit_points`,
+  on two scratch arrays: every array handed to a numba function costs an atomic
+  increment and decrement of its reference count per call, which with a dozen
+  scratch arrays and three nested calls per event took about a third of the time;
+* RANSAC first only counts a candidate's inliers (a loop without a serial float
+  sum, which vectorises); the summed residual, the tie-breaker, is computed only
+  for a candidate with at least as many inliers as the best, in the same order;
+  the winner's inliers are recomputed once at the end with the same expression;
+* on the stream, timestamps are integers: 2-means sums them in int64, exact and so
+  equal to the float64 sums (guarded: only when ``n * max|dt| < 2**53``);
+* the adaptive trial bound's ``log(1 - stop_probability)`` is computed once per call.
 """
 
 import math
@@ -27,215 +41,273 @@ def _draw(key, counter):
     return _splitmix64(key + np.uint64(counter))
 
 
-@njit(cache=True)
-def _two_means(dt, n, label):
-    """1-D 2-means of the past points and the current event (dt = 0).
+# rows of the float scratch array ``wf`` (shape (6, N*N)) ...
+_DX = 0  # window points: pixel offsets and time (us) relative to the current event
+_DY = 1
+_DT = 2
+_KX = 3  # the points of the cluster RANSAC runs on, compacted
+_KY = 4
+_KT = 5
+# ... and of the int64 scratch array ``wi`` (shape (5, N*N))
+_IT = 0  # integer dt (stream only)
+_LAB = 1  # 2-means label: 1 = the current event's cluster
+_IDX = 2  # window index of the k-th compacted point
+_KIN = 3  # the winner's inliers among the compacted points
+_INL = 4  # the winner's inliers among the window points
 
-    Initial centroids: the window minimum and the current time. A point at equal
-    distance from both centroids joins the current event's cluster. On return
-    ``label[i]`` is 1 for the points in the current event's cluster, else 0.
+#: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
+_EXACT_SUM = 2**53
+
+
+@njit(cache=True)
+def _scratch(nn):
+    """Scratch arrays ``(wf, wi)`` for windows of ``nn`` cells (allocated once per kernel call)."""
+    return np.empty((6, nn)), np.zeros((5, nn), np.int64)
+
+
+
+
+@njit(cache=True)
+def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
+                min_inliers, intercept, fallback):
+    """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
+
+    The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
+    ``exact``, see below). Returns ``(ok, a, b)``; ``wi[_INL, :n]`` marks the
+    winner's inlier points.
+
+    **2-means** of the points' ``dt`` and the current event (``dt = 0``). Initial
+    centroids: the window minimum and the current time. A point at equal distance
+    from both centroids joins the current event's cluster; a window whose
+    timestamps all equal the current one is one cluster. With ``exact`` the cluster
+    sums are taken over the integers ``wi[_IT]`` (equal to the float64 sums,
+    whatever the order, when ``n * max|dt| < 2**53``).
+
+    **RANSAC** plane ``dt = a dx + b dy`` through the current event: candidates pass
+    through the current event and two distinct past points of the kept cluster,
+    drawn with :func:`_draw` (counters 2k, 2k+1 at trial k); samples collinear with
+    the current event are skipped (they still use up a trial). Residual of a point:
+    ``max(0, |dt - a dx - b dy| - delta (|a| + |b|))`` (closest point of its
+    intra-pixel square); inlier when ``<= thr_us + thr_rel * sqrt(a^2 + b^2)``.
+    Most inliers wins, ties go to the smaller sum of inlier residuals, then to the
+    earlier trial. With ``stop_prob < 1`` the number of trials shrinks adaptively
+    as in scikit-image's ``ransac`` (``log_fail = log(1 - stop_prob)``). The kept
+    cluster is degenerate when it has fewer than ``min_points`` points (current
+    event included) or fewer than 3, or when every sample is collinear with the
+    current event; with ``fallback`` RANSAC then runs once more, with the same
+    random stream, on all the window's points (this happens on a clean ramp whose
+    middle row of timestamps 2-means gives to the old cluster: an axis-aligned
+    edge, whose kept pixels all lie on the current event's row or column).
+
+    **Refit** by least squares on the winner's inliers (current event included when
+    fewer than ``min_inliers`` there is no estimate): through the current event, or
+    with ``intercept`` with a free time offset (the plane's slopes are what we
+    need; the offset only absorbs the current event's own timing noise). A flat
+    plane (``a = b = 0``) or a non-finite one is no estimate.
     """
+    # ---- 2-means; labels: 1 = the current event's cluster
     c0 = 0.0
     for i in range(n):
-        if dt[i] < c0:
-            c0 = dt[i]
+        if wf[_DT, i] < c0:
+            c0 = wf[_DT, i]
     c1 = 0.0
     if c0 == c1:
         # every timestamp equals the current one: a single cluster
         for i in range(n):
-            label[i] = 1
-        return
-    for i in range(n):
-        label[i] = -1
-    cur = -1
-    for _ in range(100):
-        changed = False
-        s0 = 0.0
-        s1 = 0.0
-        n1 = 0
-        lc = 1 if abs(0.0 - c1) <= abs(0.0 - c0) else 0
-        if lc != cur:
-            changed = True
+            wi[_LAB, i] = 1
+    else:
+        total = 0
+        for i in range(n):
+            wi[_LAB, i] = -1
+            if exact:
+                total += wi[_IT, i]
+        cur = -1
+        for _ in range(100):
+            lc = 1 if abs(0.0 - c1) <= abs(0.0 - c0) else 0
+            changed = lc != cur
             cur = lc
-        if lc == 1:
-            n1 += 1
-        # branch-free accumulation (labels are unpredictable; adding 0.0 changes no sum)
+            n1 = 1 if lc == 1 else 0
+            nchg = 0
+            if exact:
+                si1 = 0
+                for i in range(n):
+                    v = wf[_DT, i]
+                    near1 = abs(v - c1) <= abs(v - c0)
+                    li = 1 if near1 else 0
+                    nchg += 1 if li != wi[_LAB, i] else 0
+                    wi[_LAB, i] = li
+                    si1 += wi[_IT, i] if near1 else 0
+                    n1 += li
+                s1 = float(si1)
+                s0 = float(total - si1)
+            else:
+                # branch-free accumulation (labels are unpredictable; adding 0.0 changes no sum)
+                s1 = 0.0
+                s0 = 0.0
+                for i in range(n):
+                    v = wf[_DT, i]
+                    near1 = abs(v - c1) <= abs(v - c0)
+                    li = 1 if near1 else 0
+                    nchg += 1 if li != wi[_LAB, i] else 0
+                    wi[_LAB, i] = li
+                    s1 += v if near1 else 0.0
+                    s0 += 0.0 if near1 else v
+                    n1 += li
+            n0 = n + 1 - n1  # the current event and the past points not in cluster 1
+            if not changed and nchg == 0:
+                break
+            if n0 > 0:
+                c0 = s0 / n0
+            if n1 > 0:
+                c1 = s1 / n1
         for i in range(n):
-            v = dt[i]
-            near1 = abs(v - c1) <= abs(v - c0)
-            li = np.int8(1) if near1 else np.int8(0)
-            changed |= li != label[i]
-            label[i] = li
-            s1 += v if near1 else 0.0
-            s0 += 0.0 if near1 else v
-            n1 += li
-        n0 = n + 1 - n1  # the current event and the past points not in cluster 1
-        if not changed:
-            break
-        if n0 > 0:
-            c0 = s0 / n0
-        if n1 > 0:
-            c1 = s1 / n1
-    for i in range(n):
-        label[i] = 1 if label[i] == cur else 0
+            wi[_LAB, i] = 1 if wi[_LAB, i] == cur else 0
 
-
-@njit(cache=True)
-def _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-            min_points, min_inliers, intercept, inl_best, inl_tmp, idx, kx, ky, kt):
-    """RANSAC plane ``dt = a dx + b dy`` through the current event, then least squares.
-
-    Candidates pass through the current event and two distinct past points of the
-    kept cluster (``label == 1``), drawn with :func:`_draw` (counters 2k, 2k+1 at
-    trial k); samples collinear with the current event are skipped (they still use
-    up a trial). Residual of a point: ``max(0, |dt - a dx - b dy| - delta (|a| + |b|))``
-    (closest point of its intra-pixel square); inlier when
-    ``<= thr_us + thr_rel * sqrt(a^2 + b^2)``. Most inliers wins, ties go to the
-    smaller sum of inlier residuals, then to the earlier trial. With
-    ``stop_prob < 1`` the number of trials shrinks adaptively as in
-    scikit-image's ``ransac``. The winner is refitted by least squares on its
-    inliers: through the current event, or with ``intercept`` with a free time offset
-    (the plane's slopes are what we need; the offset only absorbs the current event's
-    own timing noise).
-
-    Returns ``(ok, a, b, n_inliers)``; ``n_inliers`` counts the current event and is
-    -1 when the kept cluster is degenerate (too few points, or no sample off the
-    line through the current event).
-    ``inl_best[i]`` marks the inlier past points.
-    """
-    m = 0
-    for i in range(n):
-        inl_best[i] = False
-        # branch-free compaction into contiguous copies of the kept points (the
-        # trial loop reads them directly); a slot is overwritten unless kept
-        idx[m] = i
-        kx[m] = dx[i]
-        ky[m] = dy[i]
-        kt[m] = dt[i]
-        m += 1 if label[i] == 1 else 0
-    if m < 2 or m + 1 < min_points:
-        return False, np.nan, np.nan, -1
-    best_n = 0
-    best_cost = np.inf
-    best_a = np.nan
-    best_b = np.nan
-    trials = max_trials
-    k = 0
-    um = np.uint64(m)
-    um1 = np.uint64(m - 1)
-    while k < trials:
-        pi = np.int64(_draw(key, 2 * k) % um)
-        pj = np.int64(_draw(key, 2 * k + 1) % um1)
-        if pj >= pi:
-            pj += 1
-        k += 1
-        i = idx[pi]
-        j = idx[pj]
-        det = dx[i] * dy[j] - dx[j] * dy[i]
-        if det == 0.0:
+    # ---- RANSAC on the kept cluster; a second attempt on all points when it is degenerate
+    nin = -1
+    for attempt in range(2):
+        if attempt == 1:
+            if nin >= 0 or not fallback:
+                break
+            for i in range(n):
+                wi[_LAB, i] = 1
+        m = 0
+        for i in range(n):
+            wi[_INL, i] = 0
+            # branch-free compaction into contiguous copies of the kept points (the
+            # trial loop reads them directly); a slot is overwritten unless kept
+            wi[_IDX, m] = i
+            wf[_KX, m] = wf[_DX, i]
+            wf[_KY, m] = wf[_DY, i]
+            wf[_KT, m] = wf[_DT, i]
+            m += 1 if wi[_LAB, i] == 1 else 0
+        if m < 2 or m + 1 < min_points:
+            nin = -1
             continue
-        a = (dt[i] * dy[j] - dt[j] * dy[i]) / det
-        b = (dx[i] * dt[j] - dx[j] * dt[i]) / det
-        slack = delta * (abs(a) + abs(b))
-        thr = thr_us + thr_rel * math.sqrt(a * a + b * b)
-        cnt = 1
-        cost = 0.0
-        for q in range(m):
-            r = abs(kt[q] - (a * kx[q] + b * ky[q])) - slack
-            if r < 0.0:
-                r = 0.0
-            ok_q = r <= thr
-            inl_tmp[q] = ok_q
-            # branch-free: whether a point is an inlier is unpredictable
-            cnt += 1 if ok_q else 0
-            cost += r if ok_q else 0.0
-        if cnt > best_n or (cnt == best_n and cost < best_cost):
-            best_n = cnt
-            best_cost = cost
-            best_a = a
-            best_b = b
+        best_n = 0
+        best_cost = np.inf
+        best_a = np.nan
+        best_b = np.nan
+        best_slack = 0.0
+        best_thr = 0.0
+        trials = max_trials
+        k = 0
+        um = np.uint64(m)
+        um1 = np.uint64(m - 1)
+        while k < trials:
+            pi = np.int64(_draw(key, 2 * k) % um)
+            pj = np.int64(_draw(key, 2 * k + 1) % um1)
+            if pj >= pi:
+                pj += 1
+            k += 1
+            xi = wf[_KX, pi]
+            yi = wf[_KY, pi]
+            ti = wf[_KT, pi]
+            xj = wf[_KX, pj]
+            yj = wf[_KY, pj]
+            tj = wf[_KT, pj]
+            det = xi * yj - xj * yi
+            if det == 0.0:
+                continue
+            a = (ti * yj - tj * yi) / det
+            b = (xi * tj - xj * ti) / det
+            slack = delta * (abs(a) + abs(b))
+            thr = thr_us + thr_rel * math.sqrt(a * a + b * b)
+            # count first: no serial float sum, so the loop vectorises
+            cnt = 1
             for q in range(m):
-                inl_best[idx[q]] = inl_tmp[q]
-            if stop_prob < 1.0:
-                w = (cnt - 1) / m
-                if w >= 1.0:
-                    trials = k
-                else:
-                    denom = 1.0 - w * w
-                    if denom < 1.0:
-                        need = math.ceil(math.log(1.0 - stop_prob) / math.log(denom))
-                        if need < trials:
-                            trials = need
-    if best_n == 0:
-        # every sample was collinear with the current event: no plane at all
-        return False, np.nan, np.nan, -1
-    if best_n < min_inliers:
-        return False, np.nan, np.nan, best_n
-    # sums over the inliers; the current event (origin) adds 1 to the count only
-    s1 = 1.0
-    sx = 0.0
-    sy = 0.0
-    st = 0.0
-    sxx = 0.0
-    sxy = 0.0
-    syy = 0.0
-    sxt = 0.0
-    syt = 0.0
-    for q in range(m):
-        # branch-free: a weight of 0 or 1 (adding 0.0 changes no sum)
-        wq = 1.0 if inl_best[idx[q]] else 0.0
-        xq = kx[q] * wq
-        yq = ky[q] * wq
-        tq = kt[q] * wq
-        s1 += wq
-        sx += xq
-        sy += yq
-        st += tq
-        sxx += xq * kx[q]
-        sxy += xq * ky[q]
-        syy += yq * ky[q]
-        sxt += xq * kt[q]
-        syt += yq * kt[q]
-    if intercept:
-        # centred sums: least squares with a free time offset (the current event
-        # becomes one point among the inliers instead of a fixed anchor)
-        sxx -= sx * sx / s1
-        sxy -= sx * sy / s1
-        syy -= sy * sy / s1
-        sxt -= sx * st / s1
-        syt -= sy * st / s1
-    det = sxx * syy - sxy * sxy
-    a = best_a
-    b = best_b
-    if det > 1e-9 * (sxx * syy):
-        a = (sxt * syy - syt * sxy) / det
-        b = (syt * sxx - sxt * sxy) / det
-    if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
-        # a flat plane (all inliers at the current time): no finite lifetime
-        return False, np.nan, np.nan, best_n
-    return True, a, b, best_n
+                r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
+                r = max(r, 0.0)
+                cnt += 1 if r <= thr else 0
+            if cnt < best_n:
+                continue
+            # the summed residual only breaks ties: needed for a candidate that can win
+            cost = 0.0
+            for q in range(m):
+                r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
+                r = max(r, 0.0)
+                cost += r if r <= thr else 0.0
+            if cnt > best_n or cost < best_cost:
+                best_n = cnt
+                best_cost = cost
+                best_a = a
+                best_b = b
+                best_slack = slack
+                best_thr = thr
+                if stop_prob < 1.0:
+                    w = (cnt - 1) / m
+                    if w >= 1.0:
+                        trials = k
+                    else:
+                        denom = 1.0 - w * w
+                        if denom < 1.0:
+                            need = math.ceil(log_fail / math.log(denom))
+                            if need < trials:
+                                trials = need
+        if best_n == 0:
+            # every sample was collinear with the current event: no plane at all
+            nin = -1
+            continue
+        nin = best_n
+        # the winner's inliers, recomputed exactly as in its trial
+        for q in range(m):
+            r = abs(wf[_KT, q] - (best_a * wf[_KX, q] + best_b * wf[_KY, q])) - best_slack
+            r = max(r, 0.0)
+            inl = 1 if r <= best_thr else 0
+            wi[_KIN, q] = inl
+            wi[_INL, wi[_IDX, q]] = inl
+        if best_n < min_inliers:
+            return False, np.nan, np.nan
+        # sums over the inliers; the current event (origin) adds 1 to the count only
+        s1 = 1.0
+        sx = 0.0
+        sy = 0.0
+        st = 0.0
+        sxx = 0.0
+        sxy = 0.0
+        syy = 0.0
+        sxt = 0.0
+        syt = 0.0
+        for q in range(m):
+            # branch-free: a weight of 0 or 1 (adding 0.0 changes no sum)
+            wq = 1.0 if wi[_KIN, q] == 1 else 0.0
+            xq = wf[_KX, q] * wq
+            yq = wf[_KY, q] * wq
+            tq = wf[_KT, q] * wq
+            s1 += wq
+            sx += xq
+            sy += yq
+            st += tq
+            sxx += xq * wf[_KX, q]
+            sxy += xq * wf[_KY, q]
+            syy += yq * wf[_KY, q]
+            sxt += xq * wf[_KT, q]
+            syt += yq * wf[_KT, q]
+        if intercept:
+            # centred sums: least squares with a free time offset (the current event
+            # becomes one point among the inliers instead of a fixed anchor)
+            sxx -= sx * sx / s1
+            sxy -= sx * sy / s1
+            syy -= sy * sy / s1
+            sxt -= sx * st / s1
+            syt -= sy * st / s1
+        det = sxx * syy - sxy * sxy
+        a = best_a
+        b = best_b
+        if det > 1e-9 * (sxx * syy):
+            a = (sxt * syy - syt * sxy) / det
+            b = (syt * sxx - sxt * sxy) / det
+        if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
+            # a flat plane (all inliers at the current time): no finite lifetime
+            return False, np.nan, np.nan
+        return True, a, b
+    return False, np.nan, np.nan
 
 
 @njit(cache=True)
-def _fit_points(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                min_inliers, intercept, fallback, inl_best, inl_tmp, idx, kx, ky, kt):
-    """2-means, then RANSAC on the current event's cluster; returns ``(ok, a, b)``.
-
-    With ``fallback``, a degenerate cluster (see :func:`_ransac`) is replaced by
-    all the window's points and RANSAC runs once more with the same random
-    stream. This happens on a clean ramp whose middle row of timestamps 2-means
-    gives to the old cluster (an axis-aligned edge: the kept pixels then all lie
-    on the current event's row or column).
-    """
-    _two_means(dt, n, label)
-    ok, a, b, nin = _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-                            min_points, min_inliers, intercept, inl_best, inl_tmp, idx, kx, ky, kt)
-    if nin < 0 and fallback:
-        for i in range(n):
-            label[i] = 1
-        ok, a, b, nin = _ransac(dx, dy, dt, label, n, key, delta, thr_us, thr_rel, max_trials, stop_prob,
-                                min_points, min_inliers, intercept, inl_best, inl_tmp, idx, kx, ky, kt)
-    return ok, a, b
+def _log_fail(stop_prob):
+    """``log(1 - stop_prob)`` for the adaptive trial bound (unused at ``stop_prob = 1``)."""
+    return math.log(1.0 - stop_prob) if stop_prob < 1.0 else 0.0
 
 
 @njit(cache=True)
@@ -258,17 +330,8 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
     event's time (the paper's SAE).
     """
     side = 2 * half + 1
-    nn = side * side
-    dx = np.empty(nn)
-    dy = np.empty(nn)
-    dt = np.empty(nn)
-    label = np.empty(nn, np.int8)
-    inl_best = np.zeros(nn, np.bool_)
-    inl_tmp = np.zeros(nn, np.bool_)
-    idx = np.empty(nn, np.int64)
-    kx = np.empty(nn)
-    ky = np.empty(nn)
-    kt = np.empty(nn)
+    wf, wi = _scratch(side * side)
+    log_fail = _log_fail(stop_prob)
     for k in range(x.shape[0]):
         xk = x[k]
         yk = y[k]
@@ -284,6 +347,7 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
             t_ev = tk
             sae[si] = tk
         n = 0
+        big = 0
         for oy in range(-half, half + 1):
             yy = yk + oy
             if yy < 0 or yy >= height:
@@ -298,13 +362,15 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
                 v = sae[row + xx]
                 if v == _NEVER:
                     continue
-                dx[n] = ox
-                dy[n] = oy
-                dt[n] = float(v - tk)
+                d = v - tk
+                wf[_DX, n] = ox
+                wf[_DY, n] = oy
+                wf[_DT, n] = float(d)
+                wi[_IT, n] = d
+                big = max(big, abs(d))
                 n += 1
-        ok, a, b = _fit_points(dx, dy, dt, label, n, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-                               inl_best, inl_tmp, idx, kx, ky, kt)
+        ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
+                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback)
         if ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
@@ -324,7 +390,7 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                  min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl):
-    """:func:`_ransac` on flat windows ``win`` (k * side * side, NaN = never fired).
+    """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
     inlier mask per window cell (the centre, the current event, is an inlier when ok).
@@ -332,17 +398,9 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
     nn = side * side
     c = nn // 2
     half = side // 2
-    dx = np.empty(nn)
-    dy = np.empty(nn)
-    dt = np.empty(nn)
+    wf, wi = _scratch(nn)
     cell = np.empty(nn, np.int64)
-    label = np.empty(nn, np.int8)
-    inl_best = np.zeros(nn, np.bool_)
-    inl_tmp = np.zeros(nn, np.bool_)
-    idx = np.empty(nn, np.int64)
-    kx = np.empty(nn)
-    ky = np.empty(nn)
-    kt = np.empty(nn)
+    log_fail = _log_fail(stop_prob)
     nw = win.shape[0] // nn
     for w in range(nw):
         off = w * nn
@@ -354,14 +412,14 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
             v = win[off + q]
             if math.isnan(v):
                 continue
-            dx[n] = q % side - half
-            dy[n] = q // side - half
-            dt[n] = v - tc
+            wf[_DX, n] = q % side - half
+            wf[_DY, n] = q // side - half
+            wf[_DT, n] = v - tc
             cell[n] = q
             n += 1
-        ok, a, b = _fit_points(dx, dy, dt, label, n, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-                               inl_best, inl_tmp, idx, kx, ky, kt)
+        # float times: 2-means sums them in float64 (exact=False)
+        ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
+                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b
@@ -370,5 +428,5 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
         if ok:
             out_inl[off + c] = True
             for i in range(n):
-                if inl_best[i]:
+                if wi[_INL, i] == 1:
                     out_inl[off + cell[i]] = True
