@@ -11,6 +11,12 @@ supersampled: it jumps as sub-samples flip) should set an attribute
 ``continuous_in_time = False``; the converter then samples by ESIM's predicted
 rule instead of verifying each step (see :mod:`evedge.sim.converter`).
 
+A renderer may also offer ``intensity_into(t_s, out, dirty) -> boxes`` (the
+planar ones do, see :meth:`evedge.sim.planar._CoverageRenderer.intensity_into`):
+it redraws into a reused flat buffer and returns boxes outside which the image
+is its constant background; the converter then reuses two buffers and scans
+only those boxes (same events, fewer memory passes).
+
 Renderers that know their geometry may also implement :class:`GeometricTruth`;
 the simulator then takes each event's flow and brightness-gradient direction
 from the geometry at the event's exact time instead of from the sampled frames.
