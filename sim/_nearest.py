@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -19,6 +20,22 @@ def _nearest_outward_normal(qx, qy, poly_x, poly_y, poly_start, poly_orient, pol
     brightness gradient points outward; -1: inward).
     """
     n_poly = poly_start.shape[0] - 1
+    # bounding boxes, grown by a margin far above rounding: a polygon whose box is not nearer
+    # than the best edge so far cannot hold a nearer edge, and is skipped (same result)
+    lo_x = np.empty(n_poly)
+    hi_x = np.empty(n_poly)
+    lo_y = np.empty(n_poly)
+    hi_y = np.empty(n_poly)
+    for k in range(n_poly):
+        lo_x[k] = 1e300
+        hi_x[k] = -1e300
+        lo_y[k] = 1e300
+        hi_y[k] = -1e300
+        for m in range(poly_start[k], poly_start[k + 1]):
+            lo_x[k] = min(lo_x[k], poly_x[m] - 1e-6)
+            hi_x[k] = max(hi_x[k], poly_x[m] + 1e-6)
+            lo_y[k] = min(lo_y[k], poly_y[m] - 1e-6)
+            hi_y[k] = max(hi_y[k], poly_y[m] + 1e-6)
     for i in range(qx.shape[0]):
         x = qx[i]
         y = qy[i]
@@ -26,6 +43,10 @@ def _nearest_outward_normal(qx, qy, poly_x, poly_y, poly_start, poly_orient, pol
         bx = math.nan
         by = math.nan
         for k in range(n_poly):
+            gx = max(lo_x[k] - x, 0.0, x - hi_x[k])
+            gy = max(lo_y[k] - y, 0.0, y - hi_y[k])
+            if gx * gx + gy * gy >= best:
+                continue
             s0 = poly_start[k]
             s1 = poly_start[k + 1]
             j = s1 - 1
