@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._raycast import _cast_rays_kernel
+from ._scanline import _accumulate_pieces
 
 __all__ = ["Box3D", "CameraTrajectory", "MeshRenderer", "FACE_ORDER", "rotation_from_rpy"]
 
@@ -349,25 +350,6 @@ def _intersection_segments(lo: np.ndarray, hi: np.ndarray) -> list:
                                 start[k], end[k] = k0, k1
                                 out.append([start, end])
     return out
-
-
-def _row_coverage(c, xa, xb, h):
-    """``h`` times the mean over the straight crossing from ``xa`` to ``xb`` of ``clamp(c - x, 0, 1)``.
-
-    For a pixel row cut by a piece of discontinuity running from ``u = xa`` to ``u = xb``
-    over a height ``h``, this is the area of the strip ``u < c`` (a column's right border)
-    lying right of the piece, integrated exactly (the crossing is linear in v).
-    """
-
-    def psi(z):  # antiderivative of clamp(z, 0, 1)
-        return np.where(z <= 0, 0.0, np.where(z >= 1, z - 0.5, 0.5 * z * z))
-
-    span = xb - xa
-    flat = np.abs(span) < 1e-12
-    safe = np.where(flat, 1.0, span)
-    sloped = (psi(c - xa) - psi(c - xb)) / safe
-    mid = np.clip(c - 0.5 * (xa + xb), 0.0, 1.0)
-    return h * np.where(flat, mid, sloped)
 
 
 def _merge_collinear(p, q, left, right, tol_px=1e-6):
@@ -865,31 +847,17 @@ class MeshRenderer:
         p, q, left, right = self._pieces_at(t_s, True)
         values = self._lut
         acc = np.zeros((height, width + 1))
-        for (u0, v0), (u1, v1), il, ir in zip(p.tolist(), q.tolist(), left.tolist(), right.tolist()):
-            if v0 == v1:
-                continue  # horizontal: crossed by no scanline
-            # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
-            jump = values[il] - values[ir] if v1 < v0 else values[ir] - values[il]
-            if v0 > v1:
-                u0, v0, u1, v1 = u1, v1, u0, v0
-            rows = np.arange(max(math.floor(v0 + 0.5), 0), min(math.ceil(v1 + 0.5), height))
-            ya = np.maximum(rows - 0.5, v0)
-            yb = np.minimum(rows + 0.5, v1)
-            keep = yb > ya
-            rows, ya, yb = rows[keep], ya[keep], yb[keep]
-            slope = (u1 - u0) / (v1 - v0)
-            xa, xb = u0 + (ya - v0) * slope, u0 + (yb - v0) * slope
-            h = yb - ya
-            first = np.maximum(np.floor(np.minimum(xa, xb) - 0.5), 0).astype(np.int64)
-            last = np.minimum(np.ceil(np.maximum(xa, xb) + 0.5), width - 1).astype(np.int64)
-            count = np.maximum(last - first + 1, 0)
-            r = np.repeat(np.arange(rows.size), count)
-            within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-            cols = np.repeat(first, count) + within
-            # area right of the piece inside column ``cols``: strip u < j + .5 minus u < j - .5
-            cover = (_row_coverage(cols + 0.5, xa[r], xb[r], h[r])
-                     - _row_coverage(cols - 0.5, xa[r], xb[r], h[r]))
-            np.add.at(acc, (rows[r], cols), jump * cover)
+        u0, v0, u1, v1 = p[:, 0], p[:, 1], q[:, 0], q[:, 1]
+        sloped = v0 != v1  # horizontal pieces are crossed by no scanline
+        # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
+        up = v1 < v0
+        jump = np.where(up, values[left] - values[right], values[right] - values[left])
+        # each piece from its upper end (smaller v) to its lower end
+        su0, sv0 = np.where(up, u1, u0)[sloped], np.where(up, v1, v0)[sloped]
+        su1, sv1 = np.where(up, u0, u1)[sloped], np.where(up, v0, v1)[sloped]
+        _accumulate_pieces(acc, width, height, np.ascontiguousarray(su0), np.ascontiguousarray(sv0),
+                           np.ascontiguousarray(su1), np.ascontiguousarray(sv1),
+                           np.ascontiguousarray(jump[sloped], dtype=np.float64))
         return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :width]
 
     def _left_border(self, t_s: float, p: np.ndarray, q: np.ndarray) -> np.ndarray:
