@@ -41,19 +41,31 @@ def _draw(key, counter):
     return _splitmix64(key + np.uint64(counter))
 
 
-# rows of the float scratch array ``wf`` (shape (6, N*N)) ...
+# rows of the float scratch array ``wf`` (see :func:`_scratch`) ...
 _DX = 0  # window points: pixel offsets and time (us) relative to the current event
 _DY = 1
 _DT = 2
 _KX = 3  # the points of the cluster RANSAC runs on, compacted
 _KY = 4
 _KT = 5
-# ... and of the int64 scratch array ``wi`` (shape (5, N*N))
+_CA = 6  # a batch of candidate planes: slopes, intra-pixel slack, inlier threshold
+_CB = 7
+_CS = 8
+_CT = 9
+_LOG = 10  # row _LOG + m, column c: log(1 - ((c - 1) / m)**2), the adaptive trial bound's
+# ... and of the int64 scratch array ``wi``
 _IT = 0  # integer dt (stream only)
 _LAB = 1  # 2-means label: 1 = the current event's cluster
 _IDX = 2  # window index of the k-th compacted point
 _KIN = 3  # the winner's inliers among the compacted points
 _INL = 4  # the winner's inliers among the window points
+_CV = 5  # 1 when the batch's candidate is a plane (its sample is not collinear with the event)
+
+#: Largest window (cells) with a precomputed table of the trial bound's logarithms.
+_LOG_TABLE_MAX = 121
+
+#: Candidate planes computed together (their chains of dependent operations overlap).
+_BATCH = 4
 
 #: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
 _EXACT_SUM = 2**53
@@ -61,10 +73,19 @@ _EXACT_SUM = 2**53
 
 @njit(cache=True)
 def _scratch(nn):
-    """Scratch arrays ``(wf, wi)`` for windows of ``nn`` cells (allocated once per kernel call)."""
-    return np.empty((6, nn)), np.zeros((5, nn), np.int64)
+    """Scratch arrays ``(wf, wi)`` for windows of ``nn`` cells (allocated once per kernel call).
 
-
+    ``wf`` also holds the table of ``log(1 - w**2)``, ``w = (c - 1) / m``, for every
+    cluster size ``m <= nn`` and inlier count ``1 < c <= m`` (computed with the same
+    expression as a direct call would, so the same bits).
+    """
+    rows = _LOG + nn + 1 if nn <= _LOG_TABLE_MAX else _LOG  # no table for huge windows
+    wf = np.full((rows, nn + 2), np.nan)
+    for m in range(1, rows - _LOG):
+        for c in range(2, m + 1):
+            w = (c - 1) / m
+            wf[_LOG + m, c] = math.log(1.0 - w * w)
+    return wf, np.zeros((6, nn), np.int64)
 
 
 @njit(cache=True)
@@ -195,55 +216,76 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         um = np.uint64(m)
         um1 = np.uint64(m - 1)
         while k < trials:
-            pi = np.int64(_draw(key, 2 * k) % um)
-            pj = np.int64(_draw(key, 2 * k + 1) % um1)
-            if pj >= pi:
-                pj += 1
-            k += 1
-            xi = wf[_KX, pi]
-            yi = wf[_KY, pi]
-            ti = wf[_KT, pi]
-            xj = wf[_KX, pj]
-            yj = wf[_KY, pj]
-            tj = wf[_KT, pj]
-            det = xi * yj - xj * yi
-            if det == 0.0:
-                continue
-            a = (ti * yj - tj * yi) / det
-            b = (xi * tj - xj * ti) / det
-            slack = delta * (abs(a) + abs(b))
-            thr = thr_us + thr_rel * math.sqrt(a * a + b * b)
-            # count first: no serial float sum, so the loop vectorises
-            cnt = 1
-            for q in range(m):
-                r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
-                r = max(r, 0.0)
-                cnt += 1 if r <= thr else 0
-            if cnt < best_n:
-                continue
-            # the summed residual only breaks ties: needed for a candidate that can win
-            cost = 0.0
-            for q in range(m):
-                r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
-                r = max(r, 0.0)
-                cost += r if r <= thr else 0.0
-            if cnt > best_n or cost < best_cost:
-                best_n = cnt
-                best_cost = cost
-                best_a = a
-                best_b = b
-                best_slack = slack
-                best_thr = thr
-                if stop_prob < 1.0:
-                    w = (cnt - 1) / m
-                    if w >= 1.0:
-                        trials = k
-                    else:
-                        denom = 1.0 - w * w
-                        if denom < 1.0:
-                            need = math.ceil(log_fail / math.log(denom))
-                            if need < trials:
-                                trials = need
+            # the candidates of the next trials first, together: each is a chain of
+            # dependent operations (draw, 64-bit modulo, division, sqrt) and the
+            # chains overlap; a candidate past the final trial count is never used
+            kb = min(k + _BATCH, trials)
+            for kk in range(k, kb):
+                pi = np.int64(_draw(key, 2 * kk) % um)
+                pj = np.int64(_draw(key, 2 * kk + 1) % um1)
+                if pj >= pi:
+                    pj += 1
+                xi = wf[_KX, pi]
+                yi = wf[_KY, pi]
+                ti = wf[_KT, pi]
+                xj = wf[_KX, pj]
+                yj = wf[_KY, pj]
+                tj = wf[_KT, pj]
+                det = xi * yj - xj * yi
+                plane = det != 0.0
+                # a sample collinear with the current event is no plane (divide by 1, unused)
+                det = det if plane else 1.0
+                a = (ti * yj - tj * yi) / det
+                b = (xi * tj - xj * ti) / det
+                s = kk - k
+                wf[_CA, s] = a
+                wf[_CB, s] = b
+                wf[_CS, s] = delta * (abs(a) + abs(b))
+                wf[_CT, s] = thr_us + thr_rel * math.sqrt(a * a + b * b)
+                wi[_CV, s] = 1 if plane else 0
+            for kk in range(k, kb):
+                if kk >= trials:
+                    break
+                s = kk - k
+                if wi[_CV, s] == 0:
+                    continue
+                a = wf[_CA, s]
+                b = wf[_CB, s]
+                slack = wf[_CS, s]
+                thr = wf[_CT, s]
+                # count first: no serial float sum, so the loop vectorises
+                cnt = 1
+                for q in range(m):
+                    r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
+                    r = max(r, 0.0)
+                    cnt += 1 if r <= thr else 0
+                if cnt < best_n:
+                    continue
+                # the summed residual only breaks ties: needed for a candidate that can win
+                cost = 0.0
+                for q in range(m):
+                    r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
+                    r = max(r, 0.0)
+                    cost += r if r <= thr else 0.0
+                if cnt > best_n or cost < best_cost:
+                    best_n = cnt
+                    best_cost = cost
+                    best_a = a
+                    best_b = b
+                    best_slack = slack
+                    best_thr = thr
+                    if stop_prob < 1.0:
+                        w = (cnt - 1) / m
+                        if w >= 1.0:
+                            trials = kk + 1
+                        else:
+                            denom = 1.0 - w * w
+                            if denom < 1.0:
+                                lg = wf[_LOG + m, cnt] if wf.shape[0] > _LOG else math.log(denom)
+                                need = math.ceil(log_fail / lg)
+                                if need < trials:
+                                    trials = need
+            k = kb
         if best_n == 0:
             # every sample was collinear with the current event: no plane at all
             nin = -1
