@@ -7,14 +7,20 @@ _NEVER = np.iinfo(np.int64).min
 
 
 @njit(cache=True)
-def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, width, height, tau_us, causal):
+def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, covered_g, width, height, tau_us,
+                 causal):
     """Mark support for events ``n_old..`` of the arrays (events ``0..n_old`` are carried over).
 
     Arrays ``x, y, t, p, prev, supported`` hold the unreleased events, the first of which
     has global index ``base_g``. ``last_t`` and ``head_g`` are per pixel and polarity
     (index ``(p * height + y) * width + x``): the latest timestamp and the global index of
     the latest event there. ``prev`` chains the events of one pixel and polarity.
-    Returns nothing; updates ``supported``, ``prev``, ``last_t``, ``head_g`` in place.
+    ``covered_g`` (per pixel and polarity, -1 = none) is the global index of the newest
+    event of that pixel reached by an earlier backward walk: that walk marked every
+    event of the pixel up to it no older than its own ``t - tau``, which is no later
+    than the present walk's (time-sorted stream), so the present walk stops there
+    (the marks are the same; on dense edges most of the walking is saved).
+    Returns nothing; updates ``supported``, ``prev``, ``last_t``, ``head_g``, ``covered_g`` in place.
     """
     n = x.shape[0]
     for k in range(n_old, n):
@@ -42,7 +48,9 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, wid
                         # ...and this event supports every unreleased event of that
                         # neighbour within tau before it
                         g = head_g[q]
-                        while g >= base_g:
+                        stop = max(covered_g[q], base_g - 1)
+                        covered_g[q] = g
+                        while g > stop:
                             j = g - base_g
                             if t[j] < lo:
                                 break

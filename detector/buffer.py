@@ -98,6 +98,7 @@ class EventBuffer:
         w, h = self.sensor_size.width, self.sensor_size.height
         self._last_t = np.full(2 * w * h, NEVER_US, dtype=np.int64)
         self._head_g = np.full(2 * w * h, -1, dtype=np.int64)
+        self._covered_g = np.full(2 * w * h, -1, dtype=np.int64)
         self._pending = np.empty(0, dtype=EVENT_DTYPE)
         self._prev = np.empty(0, dtype=np.int64)
         self._supported = np.empty(0, dtype=bool)
@@ -122,7 +123,7 @@ class EventBuffer:
         supported = np.concatenate([self._supported, np.zeros(events.shape[0], dtype=bool)])
         tau = self.params.tau_min_us
         causal = self.params.mode == "causal"
-        _buffer_scan(x, y, t, p, prev, supported, n_old, self._base_g, self._last_t, self._head_g,
+        _buffer_scan(x, y, t, p, prev, supported, n_old, self._base_g, self._last_t, self._head_g, self._covered_g,
                      self.sensor_size.width, self.sensor_size.height, tau, causal)
         self._last_time = int(t[-1])
         self._pending, self._prev, self._supported = allev, prev, supported
@@ -187,5 +188,5 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     supported = np.zeros(n, dtype=bool)
     _buffer_scan(x, y, t, p, np.full(n, -1, dtype=np.int64), supported, 0, 0,
                  np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
-                 w, h, params.tau_min_us, params.mode == "causal")
+                 np.full(2 * w * h, -1, dtype=np.int64), w, h, params.tau_min_us, params.mode == "causal")
     return supported
