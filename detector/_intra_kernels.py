@@ -16,7 +16,11 @@ Speed (the per-event work of the stream kernel; results are unchanged by all of 
   the winner's inliers are recomputed once at the end with the same expression;
 * on the stream, timestamps are integers: 2-means sums them in int64, exact and so
   equal to the float64 sums (guarded: only when ``n * max|dt| < 2**53``);
-* the adaptive trial bound's ``log(1 - stop_probability)`` is computed once per call.
+* RANSAC computes the candidate planes of 4 trials together (each is a chain of
+  dependent operations: draw, 64-bit modulo, division, square root; the chains
+  overlap), then scores them in trial order;
+* the adaptive trial bound's ``log(1 - stop_probability)`` is computed once per call,
+  and ``log(1 - w**2)`` comes from a table built once per call with the same expression.
 """
 
 import math
