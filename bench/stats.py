@@ -87,15 +87,8 @@ def histogram_peaks(values, *, n_peaks: int = 2, bins: int = 120, log10: bool = 
         z = v
     if z.size < 10:
         return []
-    lo, hi = np.quantile(z, [0.001, 0.999])
-    if hi <= lo:
-        hi = lo + 1e-6
-    # a margin so that a peak at either end of the range is a whole peak
-    margin = 0.05 * (hi - lo)
-    lo, hi = lo - margin, hi + margin
-    counts, edges = np.histogram(z, bins=bins, range=(lo, hi))
-    centres = 0.5 * (edges[:-1] + edges[1:])
-    smooth = gaussian_filter1d(counts.astype(np.float64), smooth_bins, mode="constant")
+    counts, edges, centres, lo, hi = _log_histogram(z, bins)
+    smooth = gaussian_filter1d(counts, smooth_bins, mode="constant")
     idx, props = find_peaks(smooth, prominence=min_prominence * smooth.max())
     if idx.size == 0:
         return []
@@ -122,8 +115,11 @@ def histogram_peaks(values, *, n_peaks: int = 2, bins: int = 120, log10: bool = 
     return out
 
 
-def _log_histogram(z: np.ndarray, bins: int, smooth_bins: float):
-    """Smoothed histogram of ``z`` over its 0.1-99.9 % range plus a 5 % margin each side."""
+def _log_histogram(z: np.ndarray, bins: int):
+    """Histogram of ``z`` over its 0.1-99.9 % range plus a 5 % margin each side.
+
+    The margin makes a peak at either end of the range a whole peak.
+    """
     lo, hi = np.quantile(z, [0.001, 0.999])
     if hi <= lo:
         hi = lo + 1e-6
@@ -146,7 +142,7 @@ def histogram_mode(values, *, bins: int = 120, smooth_bins: float = 2.0) -> floa
     if v.size < 10:
         return float("nan")
     z = np.log10(v)
-    counts, _, centres, _, _ = _log_histogram(z, bins, smooth_bins)
+    counts, _, centres, _, _ = _log_histogram(z, bins)
     smooth = gaussian_filter1d(counts, smooth_bins, mode="constant")
     return float(10.0 ** centres[int(np.argmax(smooth))])
 
@@ -238,7 +234,7 @@ def shoulder_peaks(values, *, n_peaks: int = 2, bins: int = 120, smooth_bins: fl
     if v.size < 10:
         return []
     z = np.log10(v)
-    counts, edges, centres, lo, hi = _log_histogram(z, bins, smooth_bins)
+    counts, edges, centres, lo, hi = _log_histogram(z, bins)
     smooth = gaussian_filter1d(counts, smooth_bins, mode="constant")
     curv = -gaussian_filter1d(counts, smooth_bins, order=2, mode="constant")
     if not (curv.max() > 0):
