@@ -411,6 +411,17 @@ class EventConverter:
                 start = stop
             if np.any(todo):
                 truth[todo] = self._truth(pix[todo], t_true[todo])
+        pix, _, pol, truth, t_us = self._finished_in_order(pix, t, t_true, pol, truth, cut_us)
+        return self._events(pix, t_us, pol), truth
+
+    def _finished_in_order(self, pix, t, t_true, pol, last, cut_us):
+        """The events finished before ``cut_us`` (all, up to the duration, when None), in output order.
+
+        The others go back to the pending list with their ``last`` field (truth rows
+        or noise mask). Output order: time, ties by pixel, then exact time (a signal
+        and a noise event of one pixel never share an exact float time, so the order
+        is total and independent of the chunking).
+        """
         t_us = np.rint(t * 1e6).astype(np.int64)
         if cut_us is None:
             done = t_us <= int(round(self.duration_s * 1e6))
@@ -418,11 +429,9 @@ class EventConverter:
             done = t_us < cut_us
             keep = ~done
             if np.any(keep):
-                self._pending.append((pix[keep], t[keep], t_true[keep], pol[keep], truth[keep]))
+                self._pending.append((pix[keep], t[keep], t_true[keep], pol[keep], last[keep]))
         if not np.all(done):
-            pix, t, pol, truth, t_us = pix[done], t[done], pol[done], truth[done], t_us[done]
-        # time order; ties by pixel, then exact time (a signal and a noise event of one pixel never
-        # share an exact float time, so the order is total and independent of the chunking)
+            pix, t, t_true, pol, last, t_us = (a[done] for a in (pix, t, t_true, pol, last, t_us))
         key = t_us * (self.width * self.height) + pix
         # the parts are nearly sorted runs: a stable sort of the one key is fast, and equals the
         # lexsort below when no key repeats
@@ -430,13 +439,16 @@ class EventConverter:
         sorted_key = key[order]
         if np.any(sorted_key[1:] == sorted_key[:-1]):
             order = np.lexsort((t, key))
-        ev = np.empty(order.shape[0], dtype=EVENT_DTYPE)
-        pix_o = pix[order]
-        ev["x"] = pix_o % self.width
-        ev["y"] = pix_o // self.width
-        ev["t"] = t_us[order]
-        ev["p"] = pol[order]
-        return ev, truth[order]
+        return pix[order], t_true[order], pol[order], last[order], t_us[order]
+
+    def _events(self, pix, t_us, pol):
+        """Event array of flat pixel indices, int64 us times and polarities (already in order)."""
+        ev = np.empty(pix.shape[0], dtype=EVENT_DTYPE)
+        ev["x"] = pix % self.width
+        ev["y"] = pix // self.width
+        ev["t"] = t_us
+        ev["p"] = pol
+        return ev
 
     def _flush_geometric(self, parts, pix, t, t_true, pol, cut_us):
         """:meth:`_flush` for geometric truth: the truth of the finished events, computed in output order.
@@ -453,28 +465,9 @@ class EventConverter:
             if isinstance(c[4], np.ndarray):
                 noise[start:start + size] = c[4]
             start += size
-        t_us = np.rint(t * 1e6).astype(np.int64)
-        if cut_us is None:
-            done = t_us <= int(round(self.duration_s * 1e6))
-        else:
-            done = t_us < cut_us
-            keep = ~done
-            if np.any(keep):
-                self._pending.append((pix[keep], t[keep], t_true[keep], pol[keep], noise[keep]))
-        if not np.all(done):
-            pix, t, t_true, pol, noise, t_us = pix[done], t[done], t_true[done], pol[done], noise[done], t_us[done]
-        key = t_us * (self.width * self.height) + pix
-        order = np.argsort(key, kind="stable")  # as in _flush
-        sorted_key = key[order]
-        if np.any(sorted_key[1:] == sorted_key[:-1]):
-            order = np.lexsort((t, key))
-        n = order.shape[0]
-        pix, t_true, noise = pix[order], t_true[order], noise[order]
-        ev = np.empty(n, dtype=EVENT_DTYPE)
-        ev["x"] = pix % self.width
-        ev["y"] = pix // self.width
-        ev["t"] = t_us[order]
-        ev["p"] = pol[order]
+        pix, t_true, pol, noise, t_us = self._finished_in_order(pix, t, t_true, pol, noise, cut_us)
+        n = pix.shape[0]
+        ev = self._events(pix, t_us, pol)
         if not np.any(noise):
             return ev, self._truth(pix, t_true)
         signal = ~noise
