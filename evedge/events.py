@@ -111,12 +111,25 @@ def make_events(x, y, t, p) -> np.ndarray:
 
 
 def seconds_to_us(t_s) -> np.ndarray:
-    """Convert seconds (float) to int64 microseconds, rounding to nearest."""
+    """Convert seconds (float) to int64 microseconds, rounding to nearest.
+
+    Raises
+    ------
+    ValueError
+        On a non-finite value, or one whose microseconds do not fit int64
+        (about +-292,000 years), naming its index.
+    """
     t_s = np.asarray(t_s, dtype=np.float64)
     if not np.all(np.isfinite(t_s)):
         bad = int(np.flatnonzero(~np.isfinite(t_s))[0])
         raise ValueError(f"timestamps: non-finite value at index {bad}")
-    return np.rint(t_s * 1e6).astype(np.int64)
+    t_us = np.rint(t_s * 1e6)
+    # 2**63 is exact in float64; beyond it the cast to int64 silently wraps
+    big = np.flatnonzero(np.abs(t_us) >= 2.0**63)
+    if big.size:
+        bad = int(big[0])
+        raise ValueError(f"timestamps: value {float(t_s.flat[bad])!r} s at index {bad} is out of the int64 microsecond range")
+    return t_us.astype(np.int64)
 
 
 def find_out_of_sensor(x, y, sensor_size: SensorSize) -> tuple[str, int, int] | None:
@@ -153,7 +166,9 @@ def find_time_decrease(t) -> tuple[int, int] | None:
         ``(index, count)``: the index ``i`` of the first ``t[i] < t[i - 1]``
         and the number of such decreases; None when ``t`` is non-decreasing.
     """
-    dec = np.flatnonzero(np.diff(np.asarray(t)) < 0)
+    t = np.asarray(t)
+    # compare neighbours, not np.diff: a difference of extreme int64 values wraps around
+    dec = np.flatnonzero(t[1:] < t[:-1])
     if dec.size:
         return int(dec[0]) + 1, int(dec.size)
     return None

@@ -96,3 +96,18 @@ def test_frames_and_recording_checks():
         Recording(ev, SensorSize(4, 4), frames=Frames([0], np.zeros((1, 2, 3))))
     with pytest.raises(ValueError, match="truth has 2 rows but there are 1 events"):
         Recording(ev, SensorSize(4, 4), truth=np.zeros(2, dtype=[("a", "f8")]))
+
+
+def test_time_decrease_found_across_extreme_int64_values():
+    # np.diff of these wraps around to a positive number
+    t = np.array([100_000, np.iinfo(np.int64).min], dtype=np.int64)
+    assert find_time_decrease(t) == (1, 1)
+    ev = make_events([0, 0], [0, 0], t, [1, 1])
+    with pytest.raises(ValueError, match="timestamps are not sorted: event 1"):
+        validate_events(ev)
+
+
+def test_seconds_to_us_refuses_values_beyond_int64():
+    with pytest.raises(ValueError, match="value 1e\\+300 s at index 1 is out of the int64 microsecond range"):
+        seconds_to_us([0.0, 1e300])
+    assert seconds_to_us([-9e12]).tolist() == [-9_000_000_000_000_000_000]

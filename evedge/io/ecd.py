@@ -102,8 +102,8 @@ def _read_frames(images_txt: Path) -> Frames:
             t_s = float(tokens[0])
         except ValueError:
             raise EventFileError(f"{where}: time {tokens[0].decode('utf-8', 'replace')!r} is not a number") from None
-        if not np.isfinite(t_s):
-            raise EventFileError(f"{where}: time is not finite")
+        if not np.isfinite(t_s) or abs(t_s * 1e6) >= 2.0**63:
+            raise EventFileError(f"{where}: time {t_s!r} is not finite or out of the int64 microsecond range")
         png = folder / tokens[1].decode("utf-8")
         try:
             with Image.open(png) as im:
@@ -120,7 +120,7 @@ def _read_frames(images_txt: Path) -> Frames:
     if not images:
         raise EventFileError(f"{images_txt}: lists no frames")
     t = np.asarray(t_us, dtype=np.int64)
-    dec = np.flatnonzero(np.diff(t) < 0)
+    dec = np.flatnonzero(t[1:] < t[:-1])
     if dec.size:
         raise EventFileError(f"{images_txt}: frame times decrease at frame {int(dec[0]) + 1}")
     return Frames(t, np.stack(images))
@@ -192,6 +192,12 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
         i = int(badp[0])
         raise EventFileError(f"{path}: {locate(i)}: polarity p={float(p[i]):g}, expected 0 or 1")
 
+    try:
+        t_us = seconds_to_us(t_s)
+    except ValueError:
+        i = int(np.flatnonzero(np.abs(np.rint(t_s * 1e6)) >= 2.0**63)[0])
+        raise EventFileError(f"{path}: {locate(i)}: t={float(t_s[i])!r} s is out of the int64 microsecond range") from None
+
     frames = None
     images_txt = path.parent / "images.txt"
     if images_txt.is_file():
@@ -211,7 +217,7 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
             f"(read_events(..., sensor_size=SensorSize(240, 180)), CLI: --sensor WxH, e.g. --sensor 240x180)"
         )
     events, was_sorted = finish_events(
-        path, x, y, seconds_to_us(t_s), p > 0, sensor_size, size_from, locate, sort
+        path, x, y, t_us, p > 0, sensor_size, size_from, locate, sort
     )
     metadata = {"source": str(path), "format": "ecd-text", "sensor_size_from": size_from}
     if frames is not None:

@@ -145,10 +145,17 @@ def _dataset_in(group, path: Path, name: str):
 
 
 def _sensor(f, path: Path) -> SensorSize:
+    values = []
+    for name in ("sensor_width", "sensor_height"):
+        if name not in f.attrs:
+            raise EventFileError(f"{path}: missing attribute {name!r}")
+        value = f.attrs[name]
+        # int() would truncate 10.5 to 10 and read '10' as text: accept integers only
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+            raise EventFileError(f"{path}: attribute {name!r} must be an integer, got {value!r}")
+        values.append(int(value))
     try:
-        return SensorSize(int(f.attrs["sensor_width"]), int(f.attrs["sensor_height"]))
-    except KeyError as err:
-        raise EventFileError(f"{path}: missing attribute {err.args[0]!r}") from None
+        return SensorSize(*values)
     except (TypeError, ValueError) as err:
         raise EventFileError(f"{path}: bad sensor size attributes: {err}") from err
 
@@ -168,7 +175,13 @@ def _columns(f, path: Path, start: int = 0, stop: int | None = None) -> tuple[np
         if ds.dtype.kind not in kinds:
             raise EventFileError(f"{path}: dataset 'events/{name}' has dtype {ds.dtype}, expected {'bool' if name == 'p' else 'integers'}")
         cols.append(ds)
-    return tuple(ds[start:stop] for ds in cols)
+    out = tuple(ds[start:stop] for ds in cols)
+    t = out[2]
+    if t.dtype == np.uint64 and t.size and int(t.max()) > np.iinfo(np.int64).max:
+        # would wrap to negative int64 microseconds
+        i = int(np.flatnonzero(t > np.iinfo(np.int64).max)[0])
+        raise EventFileError(f"{path}: {locate_index(start + i)}: 'events/t' = {int(t[i])} exceeds int64 microseconds")
+    return out
 
 
 def _stack(f, path: Path, name: str, sensor: SensorSize) -> Frames | None:
@@ -180,6 +193,9 @@ def _stack(f, path: Path, name: str, sensor: SensorSize) -> Frames | None:
         stack = Frames(t_us[()], images[()])
     except ValueError as err:
         raise EventFileError(f"{path}: group {name!r}: {err}") from err
+    dec = np.flatnonzero(stack.t_us[1:] < stack.t_us[:-1])
+    if dec.size:
+        raise EventFileError(f"{path}: '{name}/t_us' decreases at frame {int(dec[0]) + 1}")
     if stack.images.shape[1:] != sensor.shape:
         raise EventFileError(
             f"{path}: '{name}/images' are {stack.images.shape[2]}x{stack.images.shape[1]}, the sensor is "
@@ -234,6 +250,8 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
             fields = []
             for name in group:
                 ds = _dataset_in(group, path, name)
+                if ds.ndim == 0:
+                    raise EventFileError(f"{path}: dataset 'truth/{name}' is a scalar, expected one row per event")
                 if ds.shape[:1] != x.shape:
                     raise EventFileError(f"{path}: dataset 'truth/{name}' has {ds.shape[0]} rows, there are {x.size} events")
                 fields.append((name, ds[()]))

@@ -62,7 +62,8 @@ def read_mat(
         content = scipy.io.loadmat(path)
     except NotImplementedError as err:  # v7.3 files are HDF5 inside
         raise EventFileError(f"{path}: MATLAB v7.3 files are not supported; save with -v7: {err}") from err
-    except (ValueError, TypeError, OSError) as err:
+    except (ValueError, TypeError, OSError, scipy.io.matlab.MatReadError) as err:
+        # MatReadError (empty or truncated file) is a bare Exception, not a ValueError
         raise EventFileError(f"{path}: not a readable MATLAB .mat file: {err}") from err
     if variable not in content:
         found = sorted(k for k in content if not k.startswith("__")) or ["none"]
@@ -87,6 +88,14 @@ def read_mat(
             if bad.size:
                 i = int(bad[0])
                 raise EventFileError(f"{path}: {locate(i)}: column {name!r} = {float(col[i])} is not an integer")
+            # the cast to int64 below would wrap these
+            big = np.flatnonzero(np.abs(col) >= 2.0**63)
+            if big.size:
+                i = int(big[0])
+                raise EventFileError(f"{path}: {locate(i)}: column {name!r} = {float(col[i])} is out of the int64 range")
+        elif col.dtype == np.uint64 and col.size and int(col.max()) > np.iinfo(np.int64).max:
+            i = int(np.flatnonzero(col > np.iinfo(np.int64).max)[0])
+            raise EventFileError(f"{path}: {locate(i)}: column {name!r} = {int(col[i])} is out of the int64 range")
     x, y, p, t = (matrix[:, j].astype(np.int64) for j in range(4))
     bad = np.flatnonzero((p != 1) & (p != -1))
     if bad.size:

@@ -170,3 +170,10 @@ def test_writer_rejects_negative_times(tmp_path):
     ev = make_events([1], [1], [-5], [1])
     with pytest.raises(ValueError, match="timestamps >= 0"):
         write_ecd(tmp_path, Recording(ev, SIZE))
+
+
+def test_time_beyond_int64_microseconds_names_the_line(tmp_path):
+    # used to wrap to a negative time and pass the order check (np.diff overflowed too)
+    path = _write(tmp_path, "0.1 1 1 1\n1e300 2 2 0\n")
+    with pytest.raises(EventFileError, match=r"events\.txt: line 2: t=1e\+300 s is out of the int64 microsecond range"):
+        read_ecd(path, sensor_size=SIZE)

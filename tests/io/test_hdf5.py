@@ -136,3 +136,26 @@ def test_metadata_must_be_json(tmp_path, small_recording):
 def test_write_rejects_non_recording(tmp_path):
     with pytest.raises(TypeError, match="expected a Recording"):
         write_recording(tmp_path / "x.h5", np.zeros(3))
+
+
+def _replace(name, value):
+    def action(f):
+        del f[name]
+        f[name] = value
+    return action
+
+
+@pytest.mark.parametrize("action, message", [
+    pytest.param(_replace("events/t", np.array([0] * 499 + [2**63 + 5], dtype=np.uint64)),
+                 r"event index 499: 'events/t' = 9223372036854775813 exceeds int64", id="uint64_time_would_wrap"),
+    pytest.param(_replace("truth/valid", True), r"'truth/valid' is a scalar", id="scalar_truth_dataset"),
+    pytest.param(lambda f: f.attrs.__setitem__("sensor_width", 40.5),
+                 r"attribute 'sensor_width' must be an integer, got np.float64\(40.5\)", id="non_integer_sensor"),
+    pytest.param(_replace("frames/t_us", np.array([0, 500_000, 400_000])), r"'frames/t_us' decreases at frame 2",
+                 id="frame_times_decrease"),
+])
+def test_more_tampering_is_an_error_not_a_traceback_or_silent(tmp_path, small_recording, action, message):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    _tamper(path, action)
+    with pytest.raises(EventFileError, match=message):
+        read_hdf5(path)

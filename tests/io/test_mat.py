@@ -87,3 +87,16 @@ def test_stripes_real_recording(realdata):
     assert rec.events.size == 340_394
     assert rec.sensor_size == SensorSize(128, 128)
     assert rec.events["t"][0] == 0 and rec.events["t"][-1] == 1_197_752
+
+
+def test_empty_or_truncated_file_is_an_event_file_error(tmp_path):
+    # scipy raises MatReadError (not a ValueError) for these
+    empty = tmp_path / "empty.mat"
+    empty.write_bytes(b"")
+    with pytest.raises(EventFileError, match=r"empty\.mat: not a readable MATLAB \.mat file"):
+        read_mat(empty)
+
+
+def test_doubles_beyond_int64_are_an_error_not_a_wrapped_value(tmp_path):
+    with pytest.raises(EventFileError, match=r"row 3 \(0-based\): column 't' = 1e\+30 is out of the int64 range"):
+        read_mat(_save(tmp_path, events=_edited(3, 3, 1e30, np.float64)))
