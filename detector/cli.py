@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -12,6 +14,8 @@ import numpy as np
 from evedge._cli_options import sensor_option
 
 _CHUNK = 100_000
+#: Names of the PNG frames this command writes (and may replace on a rerun).
+_PNG_NAME = re.compile(r"edges_\d{6}_-?\d+us\.png")
 
 
 def _times(ctx, param, value):
@@ -19,11 +23,23 @@ def _times(ctx, param, value):
         return None
     try:
         times = np.array([int(v) for v in value.split(",") if v.strip()], dtype=np.int64)
-    except ValueError:
-        raise click.BadParameter(f"expected comma-separated microseconds, got {value!r}", ctx=ctx, param=param) from None
+    except (ValueError, OverflowError):
+        raise click.BadParameter(f"expected comma-separated microseconds (int64), got {value!r}",
+                                 ctx=ctx, param=param) from None
     if times.size == 0:
         raise click.BadParameter("no instant given", ctx=ctx, param=param)
+    if np.any(np.diff(times) < 0):
+        i = int(np.flatnonzero(np.diff(times) < 0)[0])
+        raise click.BadParameter(f"instants must be non-decreasing, got {times[i]} then {times[i + 1]}",
+                                 ctx=ctx, param=param)
     return times
+
+
+def _finite(ctx, param, value):
+    """FloatRange lets nan and inf through; neither is a frame rate or a window."""
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"must be a finite number, got {value}", ctx=ctx, param=param)
+    return value
 
 
 def _frame_times(events, fps, times):
@@ -39,6 +55,10 @@ def _frame_times(events, fps, times):
 def _atomic(path: Path, write) -> None:
     """Write through a temp file in the target's directory, then rename over it."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    # mkstemp makes the file private (0600); give it the mode a plain open() would
+    mask = os.umask(0o022)
+    os.umask(mask)
+    os.fchmod(fd, 0o666 & ~mask)
     os.close(fd)
     try:
         write(tmp)
@@ -94,9 +114,15 @@ def _write_pngs(folder: Path, times, frames, quiet) -> None:
     from tqdm import tqdm
 
     folder.mkdir(parents=True, exist_ok=True)
+    written = set()
     for i, (t, img) in enumerate(tqdm(list(zip(times, frames)), desc="PNG", unit="frame", disable=quiet)):
         target = folder / f"edges_{i:06d}_{int(t)}us.png"
         _atomic(target, lambda tmp, img=img: Image.fromarray((img * 255).astype(np.uint8)).save(tmp, format="PNG"))
+        written.add(target.name)
+    # A rerun into the same folder must not leave frames of an earlier run beside the new ones.
+    for old in folder.iterdir():
+        if _PNG_NAME.fullmatch(old.name) and old.name not in written:
+            old.unlink()
 
 
 @click.command()
@@ -105,20 +131,23 @@ def _write_pngs(folder: Path, times, frames, quiet) -> None:
               help="Output folder: detection.h5 and edges/*.png.")
 @click.option("--method", type=click.Choice(["intra", "mueggler", "time", "count"]), default="intra",
               show_default=True, help="Lifetime method, or accumulation over a time window / an event count.")
-@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=30.0, show_default=True,
+@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=30.0, callback=_finite, show_default=True,
               help="Edge frames per second over the recording (ignored with --times).")
-@click.option("--times", callback=_times, metavar="T1,T2,...", help="Edge-frame instants in microseconds.")
-@click.option("--window-ms", type=click.FloatRange(min=0, min_open=True), default=30.0, show_default=True,
+@click.option("--times", callback=_times, metavar="T1,T2,...",
+              help="Edge-frame instants in microseconds, non-decreasing.")
+@click.option("--window-ms", type=click.FloatRange(min=0.001), default=30.0, show_default=True, callback=_finite,
               help="Time window of --method time.")
 @click.option("--count", "n_events", type=click.IntRange(min=1), default=2000, show_default=True,
               help="Events per frame of --method count.")
 @sensor_option()
+@click.option("--sort", "sort", is_flag=True, help="Sort events by time (stable) if the file is unsorted.")
 @click.option("--buffer/--no-buffer", "use_buffer", default=None,
               help="Event-buffer noise filter (default: on for intra, off for mueggler).")
 @click.option("--clear-behind", is_flag=True, help="Clear the pixel behind each event (Mueggler's display).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="RANSAC seed (intra).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
-def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, use_buffer, clear_behind, seed, quiet):
+def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, sort, use_buffer, clear_behind, seed,
+           quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads).
 
     Writes OUT/detection.h5 (per-event lifetime_us, vx_px_s, vy_px_s, valid and
@@ -128,7 +157,7 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, us
     from evedge.io import read_events
 
     try:
-        rec = read_events(events_file, sensor_size=sensor)
+        rec = read_events(events_file, sensor_size=sensor, sort=sort)
     except (ValueError, TypeError, OSError) as err:
         raise click.ClickException(str(err)) from None
     events, size = rec.events, rec.sensor_size
@@ -153,10 +182,13 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, us
         from .accumulate import accumulate_count
 
         frames = accumulate_count(events, size, frame_t, n_events)
-    out.mkdir(parents=True, exist_ok=True)
     meta = {"source": str(events_file), "method": method, "sensor_width": size.width, "sensor_height": size.height}
-    _write_h5(out / "detection.h5", lifetimes, kept, frame_t, frames, meta)
-    _write_pngs(out / "edges", frame_t, frames, quiet)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        _write_h5(out / "detection.h5", lifetimes, kept, frame_t, frames, meta)
+        _write_pngs(out / "edges", frame_t, frames, quiet)
+    except OSError as err:
+        raise click.ClickException(f"cannot write the output into {out}: {err}") from None
     n_valid = int(lifetimes["valid"].sum()) if lifetimes is not None else None
     msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"
     if n_valid is not None:

@@ -1,5 +1,7 @@
 """``evedge detect`` end to end on a small synthetic recording written as ECD text."""
 
+import os
+
 import h5py
 import numpy as np
 from click.testing import CliRunner
@@ -71,3 +73,62 @@ def test_detect_baseline_methods(tmp_path, edge_events):
             assert f["edges/images"].shape == (2, 16, 16)
             assert f["edges/images"][1].any()
             assert ("lifetimes" in f) == (method == "mueggler")
+
+
+def test_detect_bad_options_are_clear_errors(tmp_path, edge_events):
+    """nan/inf rates and windows, unsorted or int64-overflowing instants: a usage error naming the option."""
+    ev, _ = edge_events(10, 10, 1000, 0.0)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    base = [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10", "--quiet"]
+    cases = [
+        (["--fps", "nan"], "--fps"),
+        (["--fps", "inf"], "--fps"),
+        (["--method", "time", "--window-ms", "nan"], "--window-ms"),
+        (["--method", "time", "--window-ms", "1e-9"], "--window-ms"),
+        (["--method", "time", "--times", "20000,10000"], "--times"),
+        (["--method", "count", "--times", "20000,10000"], "--times"),
+        (["--times", "99999999999999999999"], "--times"),
+    ]
+    for extra, option in cases:
+        res = CliRunner().invoke(detect, base + extra)
+        assert res.exit_code == 2, (extra, res.output)
+        assert option in res.output, extra
+        assert isinstance(res.exception, SystemExit), (extra, res.exception)  # not an escaped exception
+
+
+def test_detect_unwritable_output_is_a_clear_error(tmp_path, edge_events):
+    ev, _ = edge_events(10, 10, 1000, 0.0)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    out = tmp_path / "o"
+    (out / "detection.h5").mkdir(parents=True)  # a folder where the file should go
+    res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "10x10", "--quiet"])
+    assert res.exit_code == 1 and isinstance(res.exception, SystemExit), res.output
+    assert "Error: cannot write the output" in res.output
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_detect_rerun_replaces_frames_and_sort_option(tmp_path, edge_events):
+    ev, _ = edge_events(10, 10, 1000, 0.0)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    out = tmp_path / "o"
+    args = [str(src), "-o", str(out), "--sensor", "10x10", "--quiet", "--method", "time"]
+    assert CliRunner().invoke(detect, args + ["--times", "1000,2000,3000"]).exit_code == 0
+    keep = out / "edges" / "notes.txt"
+    keep.write_text("mine")
+    assert CliRunner().invoke(detect, args + ["--times", "5000"]).exit_code == 0
+    pngs = sorted(p.name for p in (out / "edges").glob("*.png"))
+    assert pngs == ["edges_000000_5000us.png"]  # the three frames of the first run are gone
+    assert keep.read_text() == "mine"  # files this command did not write are left alone
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert (out / "detection.h5").stat().st_mode & 0o777 == 0o666 & ~mask  # as open() would, not mkstemp's 0600
+    # an unsorted file: an error that suggests --sort, and --sort reads it
+    unsorted = tmp_path / "unsorted.txt"
+    unsorted.write_text("0.002 1 1 1\n0.001 2 2 0\n")
+    res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet"])
+    assert res.exit_code == 1 and "--sort" in res.output
+    res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet", "--sort"])
+    assert res.exit_code == 0, res.output
