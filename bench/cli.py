@@ -6,10 +6,27 @@ import sys
 import time
 from pathlib import Path
 
+import os
+
 import click
 
+
+def _out_dir(ctx, param, value):
+    """Create the output directory up front: an unusable path is a usage error, not a traceback after the run."""
+    if value is None:
+        return None
+    try:
+        value.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise click.BadParameter(f"cannot create directory {str(value)!r}: {err.strerror or err}",
+                                 ctx=ctx, param=param) from None
+    if not os.access(value, os.W_OK | os.X_OK):
+        raise click.BadParameter(f"directory {str(value)!r} is not writable", ctx=ctx, param=param)
+    return value
+
+
 _OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
-                    help="Output directory.")
+                    callback=_out_dir, help="Output directory.")
 _QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
 _NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
 _SEED = click.option("--seed", type=int, default=0, show_default=True, help="Seed of simulations and RANSAC study.")
@@ -129,7 +146,7 @@ def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays:
 
 @click.command()
 @click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("demo_out"),
-              show_default=True, help="Output directory.")
+              show_default=True, callback=_out_dir, help="Output directory.")
 @_NOPROG
 @_SEED
 def demo(out: Path, no_progress: bool, seed: int) -> None:

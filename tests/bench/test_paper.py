@@ -150,3 +150,19 @@ def test_cli_real_with_one_display_policy(moving_edge, tmp_path):
     assert not methods & {"proposed", "mueggler"}
     r = CliRunner().invoke(bench, ["real", "-o", str(tmp_path / "o2"), "--display", "nope"])
     assert r.exit_code != 0 and "nope" in r.output
+
+
+def test_cli_unusable_output_directory_is_a_usage_error(tmp_path):
+    """-o into a file, or below a file: a clear error before any experiment runs, no traceback."""
+    from evedge.bench.cli import demo
+
+    a_file = tmp_path / "taken"
+    a_file.write_text("x")
+    for cmd, args in ((bench, ["similarity", "-o", str(a_file / "sub"), "--quick", "--no-progress"]),
+                      (bench, ["ransac", "-o", str(a_file), "--quick", "--no-progress"]),
+                      (demo, ["-o", str(a_file / "sub"), "--no-progress"])):
+        r = CliRunner().invoke(cmd, args)
+        assert r.exit_code == 2, (args, r.output)
+        assert isinstance(r.exception, SystemExit), (args, r.exception)
+        assert "--out" in r.output, r.output
+    assert a_file.read_text() == "x"
