@@ -392,8 +392,21 @@ def real_verdicts(real: dict, displays=DISPLAYS) -> list[dict]:
                     second = max(rest, key=lambda m: -np.inf if not np.isfinite(rest[m]) else rest[m])
                     ev += (f" (its count is set from the Canny maps' size, favourable to this baseline; "
                            f"without it the best is {second})")
-                out.append(_verdict(best == "proposed", f"{where}, vs {ref}] Proposed has the highest median CDM "
-                                                        f"on the real frames", f"median CDM: {ev}",
+                # Strictly highest, as in the other CDM claims: a tie is not a win, and a proposed median
+                # that is not a number (no frame scored) cannot be checked; the verdict must not depend
+                # on which method max() happens to meet first.
+                p = med["proposed"]
+                others = [v for m, v in med.items() if m != "proposed" and np.isfinite(v)]
+                if not np.isfinite(p):
+                    holds = None
+                    ev += "; the proposed method has no finite median CDM here"
+                else:
+                    holds = all(p > q for q in others)
+                    tied = [m for m, v in med.items() if m != "proposed" and np.isfinite(v) and v == p]
+                    if tied:
+                        ev += f" (tied with {', '.join(tied)}: not strictly highest)"
+                out.append(_verdict(holds, f"{where}, vs {ref}] Proposed has the highest median CDM "
+                                           f"on the real frames", f"median CDM: {ev}",
                                     {"medians": med}, display))
     return out
 

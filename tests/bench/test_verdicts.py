@@ -212,3 +212,20 @@ def test_real_claim_names_the_favourable_fixed_count():
     assert v["status"] == "fails"
     assert "best: acc_count (its count is set from the Canny maps' size" in v["evidence"]
     assert "without it the best is proposed" in v["evidence"]
+
+
+def test_real_verdict_does_not_depend_on_method_order_ties_or_nan():
+    """Regression: the best method was max() over the dict, so all-NaN medians, or a tie with the
+    proposed method listed first, gave "holds"."""
+    nan = float("nan")
+    all_nan = {"r": {"proposed": {"median": {"c": nan}}, "mueggler": {"median": {"c": nan}},
+                     "acc_1ms": {"median": {"c": nan}}}}
+    assert real_verdicts(all_nan, displays=PRIMARY_ONLY)[0]["status"] == "not checked"
+    for order in (("proposed", "mueggler"), ("mueggler", "proposed")):
+        tie = {"r": {m: {"median": {"c": 50.0}} for m in order}}
+        tie["r"]["acc_1ms"] = {"median": {"c": 10.0}}
+        v = real_verdicts(tie, displays=PRIMARY_ONLY)[0]
+        assert v["status"] == "fails" and "tied with mueggler" in v["evidence"], order
+    others_nan = {"r": {"proposed": {"median": {"c": 50.0}}, "mueggler": {"median": {"c": nan}},
+                        "acc_1ms": {"median": {"c": 49.0}}}}
+    assert real_verdicts(others_nan, displays=PRIMARY_ONLY)[0]["status"] == "holds"
