@@ -25,11 +25,22 @@ def _out_dir(ctx, param, value):
     return value
 
 
+def _scene(ctx, param, value):
+    """A scene name must name a file in scenes/ (checked before the simulation starts)."""
+    from .exp_similarity import scenes_dir
+
+    if not (scenes_dir() / f"{value}.toml").is_file():
+        known = sorted(p.stem for p in scenes_dir().glob("*.toml"))
+        raise click.BadParameter(f"no scene {value!r} in {scenes_dir()}; available: {', '.join(known) or 'none'}",
+                                 ctx=ctx, param=param)
+    return value
+
+
 _OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
                     callback=_out_dir, help="Output directory.")
 _QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
 _NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
-_SEED = click.option("--seed", type=int, default=0, show_default=True, help="Seed of simulations and RANSAC study.")
+_SEED = click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of simulations and RANSAC study.")
 _DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor", "lifetime_only"]), multiple=True,
                         help="Display policy of the lifetime methods (repeatable; default both). predecessor: "
                              "clear the pixel behind each event (primary); lifetime_only: nothing cleared.")
@@ -73,7 +84,7 @@ def paper(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
 @_QUICK
 @_NOPROG
 @_SEED
-@click.option("--repetitions", type=int, default=None, help="Windows per noise level (default 1000, quick 100).")
+@click.option("--repetitions", type=click.IntRange(min=1), default=None, help="Windows per noise level (default 1000, quick 100).")
 def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: int | None) -> None:
     """RANSAC inlier F-measure and lifetime error vs. timestamp noise (paper fig. 7)."""
     from .exp_ransac import RansacStudyParams, run_ransac_study
@@ -104,7 +115,8 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
 @_QUICK
 @_NOPROG
 @_SEED
-@click.option("--scene", default="shapes_translation", show_default=True, help="Scene in scenes/.")
+@click.option("--scene", default="shapes_translation", show_default=True, callback=_scene,
+              help="Scene in scenes/.")
 @_DISPLAY
 def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str, displays: tuple) -> None:
     """CDM over time against Canny and exact edges, box plots per section (paper fig. 9)."""
@@ -140,7 +152,15 @@ def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays:
     from .exp_real import run_real
     from .methods import DISPLAYS
 
-    res = run_real(out, path=path, quick=quick, progress=not no_progress, displays=tuple(displays) or DISPLAYS)
+    from evedge.io import EventFileError
+
+    from .exp_real import NoFramesError
+
+    try:
+        res = run_real(out, path=path, quick=quick, progress=not no_progress,
+                       displays=tuple(displays) or DISPLAYS)
+    except (EventFileError, NoFramesError) as err:  # the recording, not the code, is at fault
+        raise click.ClickException(str(err)) from None
     click.echo("\n".join(res["figures"]))
 
 

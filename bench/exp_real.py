@@ -30,6 +30,10 @@ def default_realdata_dir() -> Path:
     return Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 
 
+class NoFramesError(ValueError):
+    """The recording has no frame within its events' time span (nothing to compare with Canny)."""
+
+
 def frames_inside_events(recording) -> np.ndarray:
     """Indices of the frames whose time lies within the span of the events."""
     if recording.frames is None or recording.events.size == 0:
@@ -84,7 +88,7 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     rec = read_events(path)
     idx = frames_inside_events(rec)
     if idx.size == 0:
-        raise ValueError(f"run_real: no frame of {path} lies within its events' time span")
+        raise NoFramesError(f"run_real: no frame of {path} lies within its events' time span")
     times = rec.frames.t_us[idx]
     grey = rec.frames.images[idx]
     settings = CANNY_SETTINGS[:1] if quick else CANNY_SETTINGS

@@ -166,3 +166,19 @@ def test_cli_unusable_output_directory_is_a_usage_error(tmp_path):
         assert isinstance(r.exception, SystemExit), (args, r.exception)
         assert "--out" in r.output, r.output
     assert a_file.read_text() == "x"
+
+
+def test_cli_bad_bench_options_are_usage_errors(tmp_path):
+    """Negative seed, zero repetitions, unknown scene, unreadable --path: 'Error: ...' without traceback."""
+    junk = tmp_path / "junk.txt"
+    junk.write_text("not events\n")
+    out = str(tmp_path / "o")
+    cases = [(["ransac", "-o", out, "--repetitions", "0"], "--repetitions", 2),
+             (["ransac", "-o", out, "--seed", "-1"], "--seed", 2),
+             (["similarity", "-o", out, "--scene", "nope"], "shapes_translation", 2),
+             (["real", "-o", out, "--path", str(junk), "--quick"], "junk.txt", 1)]
+    for args, needle, code in cases:
+        r = CliRunner().invoke(bench, args + ["--no-progress"])
+        assert r.exit_code == code, (args, r.output, r.exception)
+        assert isinstance(r.exception, SystemExit), (args, r.exception)
+        assert "Error:" in r.output and needle in r.output, (args, r.output)
