@@ -63,7 +63,8 @@ def check_positive(owner: str, name: str, value, *, integer: bool = False, allow
         raise TypeError(f"{owner}.{name} must be a number, got {value!r}")
     if integer and not float(value).is_integer():
         raise TypeError(f"{owner}.{name} must be an integer, got {value!r}")
-    if not np.isfinite(value):
+    # Python ints may exceed every float/int64 (np.isfinite would fail on them); they are finite
+    if not isinstance(value, (int, np.integer)) and not np.isfinite(value):
         raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
     if value < 0 or (value == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"

@@ -368,8 +368,15 @@ class WindowFit:
     lifetime_us: float
 
 
+def _as_float(values, name: str) -> np.ndarray:
+    try:
+        return np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{name}: expected numbers (timestamps in us, NaN for never-fired pixels): {err}") from None
+
+
 def _check_windows(windows, name: str) -> np.ndarray:
-    w = np.asarray(windows, dtype=np.float64)
+    w = _as_float(windows, name)
     if w.ndim != 3 or w.shape[1] != w.shape[2]:
         raise ValueError(f"{name}: expected shape (k, N, N), got {np.shape(windows)}")
     side = w.shape[1]
@@ -399,6 +406,8 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     params = _check_params(params)
     w = _check_windows(windows, "windows")
     check_positive("fit_windows", "seed", seed, integer=True, allow_zero=True)
+    if seed >= 2**63:  # as IntraParams.seed: the kernel takes an int64
+        raise ValueError(f"fit_windows.seed must be < 2**63, got {seed}")
     k, side, _ = w.shape
     if params.min_points > side * side or params.min_inliers > side * side:
         raise ValueError(f"params: min_points/min_inliers exceed the {side}x{side} window")
@@ -426,13 +435,13 @@ def fit_window(window_t_us, params: IntraParams | None = None, *, use_intra: boo
     use_intra : bool
         False sets ``delta = 0`` (plain RANSAC).
     seed : int
-        Seed of the random stream (the window is stream index 0).
+        Seed of the random stream (the window is stream index 0), 0 <= seed < 2**63.
 
     Returns
     -------
     WindowFit
     """
-    w = np.asarray(window_t_us, dtype=np.float64)
+    w = _as_float(window_t_us, "window_t_us")
     if w.ndim != 2:
         raise ValueError(f"window_t_us: expected an (N, N) array, got shape {w.shape}")
     a, b, ok, inl = fit_windows(w[None], params, use_intra=use_intra, seed=seed)

@@ -437,3 +437,19 @@ def test_bad_inputs():
         w = np.zeros((5, 5))
         w[0, 0] = -np.inf
         fit_window(w)
+
+
+def test_seed_range_is_a_clear_error_everywhere():
+    """Regression: a seed beyond float range escaped as numpy's isfinite TypeError, and fit_windows
+    accepted seeds in [2**63, 2**64) that IntraParams refuses."""
+    w = np.add.outer(np.arange(5.0) * 100, np.arange(5.0) * 50)
+    for seed in (2**63, 2**64, 2**70):
+        with pytest.raises(ValueError, match=r"IntraParams.seed must be < 2\*\*63"):
+            IntraParams(seed=seed)
+        with pytest.raises(ValueError, match=r"fit_windows.seed must be < 2\*\*63"):
+            fit_window(w, seed=seed)
+    assert fit_window(w, seed=2**63 - 1).ok
+    with pytest.raises(TypeError, match="window_t_us: expected numbers"):
+        fit_window([["a", "b", "c"]] * 3)
+    with pytest.raises(TypeError, match="windows: expected numbers"):
+        fit_windows([[["a"] * 3] * 3])
