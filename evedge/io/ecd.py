@@ -17,16 +17,19 @@ References
 from __future__ import annotations
 
 import os
-import tempfile
+import re
+import shutil
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..events import Frames, Recording, SensorSize, seconds_to_us
+from ._atomic import atomic_path, current_umask, make_temp_dir
 from ._checks import EventFileError, finish_events
 
 _COLUMNS = ("t", "x", "y", "p")
+_FRAME_NAME = re.compile(r"frame_\d{8}\.png")
 _CHUNK_ROWS = 1_000_000
 
 
@@ -232,14 +235,9 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
 
 def _atomic_write(target: Path, write) -> None:
     """Call ``write(file_object)`` on a temp file beside ``target``, then rename it."""
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
+    with atomic_path(target) as tmp:
+        with open(tmp, "wb") as fh:
             write(fh)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _format_seconds(t_us: np.ndarray) -> np.ndarray:
@@ -263,13 +261,12 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
 
     Writes ``events.txt`` (``%.9f %d %d %d``: seconds with 9 decimals, as the
     dataset does; exact, since times are whole microseconds), and, when the
-    recording has frames, ``images.txt`` and ``images/frame_%08d.png``. Every
-    file is written to a temp file and renamed.
+    recording has frames, ``images.txt`` and ``images/frame_%08d.png``.
 
     Parameters
     ----------
     folder : path-like
-        Created if missing.
+        Created if missing. Other files in it are left alone.
     recording : Recording
 
     Returns
@@ -277,8 +274,28 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
     Path
         The folder.
 
+    Raises
+    ------
+    TypeError
+        ``recording`` is not a :class:`Recording`, or its frames are neither
+        uint8 nor float.
+    ValueError
+        Negative event or frame times, float frames outside [0, 1].
+    NotADirectoryError
+        ``folder`` is an existing file.
+    FileExistsError
+        ``folder/images`` holds files other than ``frame_XXXXXXXX.png``
+        (not a folder this writer made; it is not replaced).
+
     Notes
     -----
+    Nothing is written until every check passed, and nothing is half-written:
+    the PNGs go to a temp folder and each text file to a temp file, renamed
+    into place at the end (``events.txt`` last). A previous recording's
+    ``images.txt`` and ``images/`` in ``folder`` are replaced, or removed when
+    this recording has no frames, so that reading the folder back never pairs
+    these events with old frames.
+
     The layout has no place for the sensor size, ground truth or edge maps:
     without frames, read it back with ``sensor_size=``; keep truth in the
     HDF5 format (:func:`evedge.io.write_recording`). Float frames in [0, 1]
@@ -287,12 +304,25 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
     if not isinstance(recording, Recording):
         raise TypeError(f"write_ecd: expected a Recording, got {type(recording).__name__}")
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not folder.is_dir():
+        raise NotADirectoryError(f"write_ecd: cannot write a folder at {folder}: it is an existing file")
     ev = recording.events
     if ev.size and ev["t"].min() < 0:
         raise ValueError("write_ecd: the text format needs event timestamps >= 0")
-    if recording.frames is not None and len(recording.frames) and recording.frames.t_us.min() < 0:
+    frames = recording.frames if recording.frames is not None and len(recording.frames) else None
+    if frames is not None and frames.t_us.min() < 0:
         raise ValueError("write_ecd: the text format needs frame timestamps >= 0")
+    images = _frames_as_uint8(frames) if frames is not None else None
+    old_images = folder / "images"
+    if old_images.exists():
+        foreign = [p.name for p in old_images.iterdir() if not _FRAME_NAME.fullmatch(p.name)] \
+            if old_images.is_dir() else [old_images.name]
+        if foreign:
+            raise FileExistsError(
+                f"write_ecd: {old_images} holds {', '.join(sorted(foreign)[:3])}, not frames written by "
+                f"write_ecd; it would be replaced: choose another folder or remove it"
+            )
+    folder.mkdir(parents=True, exist_ok=True)
 
     def write_events(fh) -> None:
         for start in range(0, ev.size, _CHUNK_ROWS):
@@ -303,17 +333,42 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
             # one %-format over the whole chunk runs in C, far faster than savetxt's row loop
             fh.write((("%d.%06d000 %d %d %d\n" * chunk.size) % tuple(cols.ravel().tolist())).encode())
 
-    _atomic_write(folder / "events.txt", write_events)
-    if recording.frames is not None:
-        from PIL import Image
+    staged = None
+    try:
+        if images is not None:
+            from PIL import Image
 
-        images = _frames_as_uint8(recording.frames)
-        (folder / "images").mkdir(exist_ok=True)
-        lines = []
-        for k, (t, img) in enumerate(zip(recording.frames.t_us, images)):
-            name = f"images/frame_{k:08d}.png"
-            _atomic_write(folder / name, lambda fh, img=img: Image.fromarray(img).save(fh, format="PNG"))
-            s, us = divmod(int(t), 1_000_000)
-            lines.append(f"{s}.{us:06d}000 {name}\n")
-        _atomic_write(folder / "images.txt", lambda fh: fh.write("".join(lines).encode()))
+            staged = make_temp_dir(folder, "images")
+            lines = []
+            for k, (t, img) in enumerate(zip(frames.t_us, images)):
+                name = f"frame_{k:08d}.png"
+                Image.fromarray(img).save(staged / name, format="PNG")
+                os.chmod(staged / name, 0o666 & ~current_umask())
+                s, us = divmod(int(t), 1_000_000)
+                lines.append(f"{s}.{us:06d}000 images/{name}\n")
+        with atomic_path(folder / "events.txt") as events_tmp:
+            with open(events_tmp, "wb") as fh:
+                write_events(fh)
+            # everything is on disk: swap in the frames, then the events (the rename on leaving)
+            _replace_tree(staged, folder / "images")
+            staged = None
+            if images is not None:
+                _atomic_write(folder / "images.txt", lambda fh: fh.write("".join(lines).encode()))
+            else:
+                (folder / "images.txt").unlink(missing_ok=True)
+    finally:
+        if staged is not None:
+            shutil.rmtree(staged, ignore_errors=True)
     return folder
+
+
+def _replace_tree(new: Path | None, target: Path) -> None:
+    """Put folder ``new`` at ``target`` (or just remove ``target`` when ``new`` is None)."""
+    old = None
+    if target.is_dir() and not target.is_symlink():
+        old = make_temp_dir(target.parent, f"{target.name}.old")
+        os.replace(target, old / target.name)
+    if new is not None:
+        os.replace(new, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)

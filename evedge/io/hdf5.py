@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from ..events import Frames, Recording, SensorSize
+from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError, finish_events, locate_index
 
 FORMAT_NAME = "evedge"
@@ -58,6 +58,16 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     -------
     Path
         The written file.
+
+    Raises
+    ------
+    TypeError
+        ``recording`` is not a :class:`Recording`, or its truth is not structured.
+    ValueError
+        ``metadata`` is not JSON-serialisable.
+    OSError
+        The folder of ``path`` does not exist (``FileNotFoundError``) or
+        ``path`` is a folder (``IsADirectoryError``); nothing is written.
     """
     import h5py
 
@@ -68,9 +78,8 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     except (TypeError, ValueError) as err:
         raise ValueError(f"write_recording: Recording.metadata is not JSON-serialisable: {err}") from err
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
+    check_output_file(path, "write_recording")
+    with atomic_path(path) as tmp:
         with h5py.File(tmp, "w", track_order=True) as f:
             f.attrs["format"] = FORMAT_NAME
             f.attrs["format_version"] = np.int64(FORMAT_VERSION)
@@ -94,10 +103,6 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
                 _write_stack(f, "frames", recording.frames)
             if recording.edges is not None:
                 _write_stack(f, "edges", recording.edges)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
 
 

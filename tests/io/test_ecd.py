@@ -177,3 +177,59 @@ def test_time_beyond_int64_microseconds_names_the_line(tmp_path):
     path = _write(tmp_path, "0.1 1 1 1\n1e300 2 2 0\n")
     with pytest.raises(EventFileError, match=r"events\.txt: line 2: t=1e\+300 s is out of the int64 microsecond range"):
         read_ecd(path, sensor_size=SIZE)
+
+
+def test_rewrite_without_frames_drops_the_old_frames(tmp_path):
+    # a stale images.txt would make the folder read back with old frames and their sensor size
+    write_ecd(tmp_path / "seq", _recording())
+    rec = Recording(_recording().events, SensorSize(40, 30))
+    folder = write_ecd(tmp_path / "seq", rec)
+    assert sorted(p.name for p in folder.iterdir()) == ["events.txt"]
+    with pytest.raises(EventFileError, match="sensor size unknown"):
+        read_events(folder)
+
+
+def test_rewrite_with_fewer_frames_leaves_no_old_png(tmp_path):
+    write_ecd(tmp_path / "seq", _recording())
+    rec = _recording()
+    rec.frames = Frames(rec.frames.t_us[:1], rec.frames.images[:1])
+    folder = write_ecd(tmp_path / "seq", rec)
+    assert [p.name for p in (folder / "images").iterdir()] == ["frame_00000000.png"]
+    assert len(read_events(folder).frames) == 1
+
+
+def test_failed_write_leaves_the_old_folder_as_it_was(tmp_path):
+    folder = write_ecd(tmp_path / "seq", _recording())
+    before = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    bad = _recording(frames_dtype=np.float64)
+    bad.frames.images[2, 0, 0] = 1.5
+    with pytest.raises(ValueError, match=r"float frames must lie in \[0, 1\]"):
+        write_ecd(folder, bad)
+    after = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    assert after == before
+    assert not [p for p in folder.rglob("*") if p.name.startswith(".")]  # no temp left
+
+
+def test_files_get_the_umask_mode_not_the_temp_files_0600(tmp_path):
+    import os
+    import stat
+
+    mask = os.umask(0o022)
+    try:
+        folder = write_ecd(tmp_path / "seq", _recording())
+    finally:
+        os.umask(mask)
+    for p in [folder / "events.txt", folder / "images.txt", folder / "images", *folder.glob("images/*")]:
+        expected = 0o755 if p.is_dir() else 0o644
+        assert stat.S_IMODE(p.stat().st_mode) == expected, p
+
+
+def test_folder_path_that_is_a_file_or_foreign_images_folder(tmp_path):
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(NotADirectoryError, match="it is an existing file"):
+        write_ecd(tmp_path / "file", _recording())
+    (tmp_path / "seq" / "images").mkdir(parents=True)
+    (tmp_path / "seq" / "images" / "mine.jpg").write_text("keep")
+    with pytest.raises(FileExistsError, match=r"images holds mine\.jpg, not frames written by write_ecd"):
+        write_ecd(tmp_path / "seq", _recording())
+    assert sorted(p.name for p in (tmp_path / "seq").rglob("*")) == ["images", "mine.jpg"]

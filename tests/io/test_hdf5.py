@@ -159,3 +159,24 @@ def test_more_tampering_is_an_error_not_a_traceback_or_silent(tmp_path, small_re
     _tamper(path, action)
     with pytest.raises(EventFileError, match=message):
         read_hdf5(path)
+
+
+def test_write_to_a_missing_folder_or_onto_a_folder_is_a_clear_error(tmp_path, small_recording):
+    with pytest.raises(FileNotFoundError, match=r"write_recording: cannot write .*rec\.h5: folder .*nodir does not exist"):
+        write_recording(tmp_path / "nodir" / "rec.h5", small_recording())
+    (tmp_path / "adir").mkdir()
+    with pytest.raises(IsADirectoryError, match=r"adir: it is an existing folder"):
+        write_recording(tmp_path / "adir", small_recording())
+    assert [p.name for p in tmp_path.iterdir()] == ["adir"]  # no temp file left
+
+
+def test_written_file_gets_the_umask_mode(tmp_path, small_recording):
+    import os
+    import stat
+
+    mask = os.umask(0o022)
+    try:
+        path = write_recording(tmp_path / "rec.h5", small_recording())
+    finally:
+        os.umask(mask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644  # not mkstemp's 0600
