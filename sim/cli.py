@@ -25,17 +25,24 @@ def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: st
     from .scene import SceneError, load_scene
     from .simulate import simulate as run
 
-    try:
-        parsed = load_scene(scene)
-    except SceneError as err:
-        raise click.ClickException(str(err)) from None
-    rec = run(parsed, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=not quiet)
     from evedge.io import write_ecd, write_recording
 
-    if fmt == "h5":
-        path = write_recording(output, rec)
-    else:
-        path = write_ecd(output, rec)
+    # refuse an unwritable output before a simulation that may take minutes
+    if fmt == "h5" and output.is_dir():
+        raise click.BadParameter(f"{output} is an existing folder; --format h5 writes a file",
+                                 param_hint="'-o' / '--output'")
+    if fmt == "h5" and not output.parent.is_dir():
+        raise click.BadParameter(f"folder {output.parent} of {output} does not exist",
+                                 param_hint="'-o' / '--output'")
+    if fmt == "ecd" and output.exists() and not output.is_dir():
+        raise click.BadParameter(f"{output} is an existing file; --format ecd writes a folder",
+                                 param_hint="'-o' / '--output'")
+    try:
+        parsed = load_scene(scene)
+        rec = run(parsed, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=not quiet)
+        path = write_recording(output, rec) if fmt == "h5" else write_ecd(output, rec)
+    except (SceneError, ValueError, TypeError, OSError, MemoryError) as err:
+        raise click.ClickException(str(err) or type(err).__name__) from None
     md = rec.metadata
     click.echo(f"{path}: {rec.events.shape[0]} events ({md['n_signal']} signal, {md['n_noise']} noise), "
                f"{md['duration_s']} s, {rec.sensor_size.width}x{rec.sensor_size.height}, "

@@ -103,6 +103,9 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         frame_rate_hz = scene.frame_rate_hz
     if not (isinstance(frame_rate_hz, (int, float)) and frame_rate_hz >= 0 and math.isfinite(frame_rate_hz)):
         raise ValueError(f"frame_rate_hz must be >= 0, got {frame_rate_hz!r}")
+    if frame_rate_hz > 1e6:
+        # frame times are whole microseconds: faster frames would share timestamps
+        raise ValueError(f"frame_rate_hz must be <= 1e6 (frame times are whole microseconds), got {frame_rate_hz!r}")
     if not (isinstance(chunk_s, (int, float)) and chunk_s > 0 and math.isfinite(chunk_s)):
         raise ValueError(f"chunk_s must be > 0, got {chunk_s!r}")
     params = scene.params if lambda_ is None else replace(scene.params, lambda_=lambda_)
@@ -114,11 +117,19 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         conv = EventConverter(renderer, params, seed=scene.seed, duration_s=scene.duration_s)
         if frame_rate_hz > 0:
             n_frames = int(math.floor(scene.duration_s * frame_rate_hz + 1e-9)) + 1
-            frame_t = np.arange(n_frames) / frame_rate_hz
         else:
-            frame_t = np.empty(0)
-        images = np.empty((frame_t.shape[0], scene.sensor.height, scene.sensor.width), dtype=np.float32)
-        edges = np.empty(images.shape, dtype=bool)
+            n_frames = 0
+        try:
+            frame_t = np.arange(n_frames) / frame_rate_hz if n_frames else np.empty(0)
+            images = np.empty((frame_t.shape[0], scene.sensor.height, scene.sensor.width), dtype=np.float32)
+            edges = np.empty(images.shape, dtype=bool)
+        except MemoryError:
+            gib = n_frames * scene.sensor.height * scene.sensor.width * 5 / 2**30
+            raise MemoryError(
+                f"simulate: {n_frames} frames and edge maps of {scene.sensor.width}x{scene.sensor.height} "
+                f"(frame_rate_hz={frame_rate_hz}, duration_s={scene.duration_s}) need {gib:.1f} GiB; "
+                f"lower frame_rate_hz or duration_s"
+            ) from None
         ev_parts, tr_parts = [], []
         next_frame = 0
         t_done = 0.0

@@ -1,8 +1,10 @@
 """``evedge simulate`` writes a readable recording."""
 
+import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from evedge.io import read_events
@@ -39,3 +41,42 @@ def test_simulate_bad_scene_names_file_and_key(tmp_path):
     res = CliRunner().invoke(simulate, [str(bad), "-o", str(tmp_path / "x.h5")])
     assert res.exit_code != 0
     assert "bad.toml" in res.output and "scene.duration_s" in res.output
+
+
+def _run(args):
+    return CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "--quiet", *args])
+
+
+def test_unwritable_output_is_refused_before_simulating(tmp_path):
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "afile").write_text("x")
+    for args, message in [
+        (["-o", str(tmp_path / "nodir" / "s.h5")], "folder .*nodir of .*s.h5 does not exist"),
+        (["-o", str(tmp_path / "adir")], "adir is an existing folder; --format h5 writes a file"),
+        (["-o", str(tmp_path / "afile"), "--format", "ecd"], "afile is an existing file; --format ecd writes a folder"),
+    ]:
+        res = _run(args)
+        assert res.exit_code == 2, res.output
+        assert res.exception is None or isinstance(res.exception, SystemExit)
+        assert re.search(message, res.output), res.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "afile"]
+
+
+def test_bad_overrides_are_an_error_line_not_a_traceback(tmp_path):
+    for args, message in [
+        (["--duration", "nan"], "Error: duration_s must be a positive number, got nan"),
+        (["--frame-rate", "inf"], "Error: frame_rate_hz must be >= 0, got inf"),
+        (["--frame-rate", "1e12"], r"Error: frame_rate_hz must be <= 1e6"),
+    ]:
+        res = _run(["-o", str(tmp_path / "s.h5"), *args])
+        assert res.exit_code == 1, res.output
+        assert isinstance(res.exception, SystemExit), res.exception  # a ClickException, not a crash
+        assert re.search(message, res.output), res.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_frames_too_big_for_memory_is_named():
+    from evedge.sim import simulate as run
+
+    with pytest.raises(MemoryError, match=r"simulate: 10000000000001 frames and edge maps of 128x128 .* GiB"):
+        run(SCENES / "stripes.toml", duration_s=1e7, frame_rate_hz=1e6, progress=False)
