@@ -89,6 +89,8 @@ class EdgeImage:
         """Boolean (height, width) edge map at time ``t_us`` (>= the newest processed event)."""
         if isinstance(t_us, bool) or not isinstance(t_us, (int, np.integer, float, np.floating)):
             raise TypeError(f"t_us must be a number, got {t_us!r}")
+        if isinstance(t_us, (float, np.floating)) and not np.isfinite(t_us):
+            raise ValueError(f"t_us must be finite, got {t_us!r}")  # nan would give an empty map silently
         if self._last_time is not None and t_us < self._last_time:
             raise ValueError(
                 f"t_us={t_us} is before the newest processed event (t={self._last_time} us); "

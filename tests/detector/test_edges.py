@@ -131,3 +131,16 @@ def test_errors():
     with pytest.raises(ValueError, match="previous chunk"):
         img.process(ev[:1], lt[:1])
     assert lt.dtype == LIFETIME_DTYPE
+
+
+def test_image_at_refuses_non_finite_instants():
+    """Regression: image_at(nan) passed the 'not before' check (nan < t is False) and returned an empty map."""
+    img = EdgeImage(SensorSize(4, 3))
+    ev = make_events([1], [1], [100], [True])
+    lt = empty_lifetimes(1)
+    lt["lifetime_us"], lt["valid"] = 50.0, True
+    img.process(ev, lt)
+    assert img.image_at(120)[1, 1]
+    for bad in (float("nan"), np.float64("inf"), -np.inf):
+        with pytest.raises(ValueError, match="t_us must be finite"):
+            img.image_at(bad)
