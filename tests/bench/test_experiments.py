@@ -92,15 +92,40 @@ def test_lifetime_image_median_per_pixel():
 def test_real_experiment_on_written_ecd_folder(moving_edge, tmp_path):
     from evedge.io import write_ecd
 
+    from evedge.bench.canny import CANNY_SETTINGS, canny_edges
+    from evedge.bench.cdm import cdm
+    from evedge.bench.methods import DISPLAY_CLEAR_BEHIND, split_key
+    from evedge.detector import detect
+    from evedge.detector.edges import edge_frames
+    from evedge.io import read_events
+
     folder = write_ecd(tmp_path / "rec", moving_edge)
-    res = run_real(tmp_path / "out", path=folder, quick=True, progress=False, name="edge")
+    res = run_real(tmp_path / "out", path=folder, quick=True, progress=False, name="edge", keep_maps=True)
     r = res["recordings"]["edge"]
-    assert len(r["frame_t_us"]) == len(frames_inside_events(moving_edge))
+    idx = frames_inside_events(moving_edge)
+    assert list(r["frame_index"]) == list(idx) and len(idx) > 5
+    np.testing.assert_array_equal(r["frame_t_us"], moving_edge.frames.t_us[idx])
     assert set(r["cdm"]) == {"canny_matlab_0.3"}
+    # every stored number is the CDM of the proposed method's map (rebuilt here from the detector)
+    # against Canny of the grey frame with the same index: catches frame/time misalignment
+    kept = res["_maps"]
+    grey = read_events(folder).frames.images[idx]  # as written to disk (PNG), not the float originals
+    np.testing.assert_array_equal(kept["grey"], grey)
+    det = detect(moving_edge.events, moving_edge.sensor_size)
     for m in METHODS:
         v = np.asarray(r["cdm"]["canny_matlab_0.3"][m])
-        assert v.shape == (len(r["frame_t_us"]),)
-        assert np.all((v >= 0) & (v <= 100))
+        assert v.shape == (len(idx),)
+        base, display = split_key(m)
+        if base == "proposed":
+            want = edge_frames(moving_edge.events[det.kept], det.lifetimes[det.kept], moving_edge.sensor_size,
+                               moving_edge.frames.t_us[idx], clear_behind=DISPLAY_CLEAR_BEHIND[display])
+            np.testing.assert_array_equal(kept["maps"][m], want)
+        for i in range(len(idx)):
+            ref = canny_edges(grey[i], CANNY_SETTINGS[0])
+            assert v[i] == cdm(kept["maps"][m][i], ref), (m, i)
+    # and the maps mean something: the proposed edge tracks the frame's edge, 1 ms accumulation misses it
+    med = {m: np.median(r["cdm"]["canny_matlab_0.3"][m]) for m in METHODS}
+    assert med["proposed"] > 60 and med["acc_1ms"] < 10
     assert (tmp_path / "out" / "real_edge.png").stat().st_size > 0
 
 
@@ -112,8 +137,14 @@ def test_real_experiment_on_slider_depth(realdata_dir, tmp_path):
     r = res["recordings"]["slider_depth"]
     # the 4 frames inside the 0.0038-0.1742 s of events
     assert list(r["frame_index"]) == [1, 2, 3, 4]
+    cdms = {m: np.asarray(r["cdm"]["canny_matlab_0.3"][m]) for m in METHODS}
     for m in METHODS:
-        assert np.all(np.asarray(r["cdm"]["canny_matlab_0.3"][m]) >= 0)
+        assert cdms[m].shape == (4,) and np.all((cdms[m] >= 0) & (cdms[m] <= 100)), m
+    # measured 2026-11-23 (regression pins; the accumulations do not depend on any estimator):
+    # proposed 36.7 45.0 48.4 47.2, acc_1ms 28.9 29.0 36.4 30.8, acc_30ms 40.7 37.1 35.6 35.9
+    np.testing.assert_allclose(cdms["proposed"], [36.7, 45.0, 48.4, 47.2], atol=1.0)
+    np.testing.assert_allclose(cdms["acc_1ms"], [28.9, 29.0, 36.4, 30.8], atol=0.1)
+    np.testing.assert_allclose(cdms["acc_30ms"], [40.7, 37.1, 35.6, 35.9], atol=0.1)
 
 
 def test_qualitative_panel(similarity, tmp_path):
