@@ -30,6 +30,10 @@ def cdm_table(maps: dict[str, np.ndarray], references: dict[str, np.ndarray], *,
         method -> (n, H, W) bool.
     references : dict
         reference name -> (n, H, W) bool (same frames).
+    progress : bool
+        Show a tqdm progress bar (stderr).
+    desc : str
+        Label of the progress bar.
 
     Returns
     -------

@@ -69,11 +69,21 @@ def histogram_peaks(values, *, n_peaks: int = 2, bins: int = 120, log10: bool = 
     ----------
     values : array_like
         Positive samples (non-finite and non-positive ones are dropped in log mode).
+    n_peaks : int
+        Most peaks returned (the most prominent ones).
+    bins : int
+        Histogram bins over the range of the (log) samples.
+    log10 : bool
+        Histogram of ``log10(values)`` (True) or of ``values``.
+    smooth_bins : float
+        Standard deviation, in bins, of the Gaussian smoothing.
+    min_prominence : float
+        Least prominence of a peak, as a fraction of the highest smoothed bin.
 
     Returns
     -------
     list of dict
-        Per peak: ``mode`` (bin centre of the maximum, in value units),
+        Empty when fewer than 10 usable samples or no peak. Per peak: ``mode`` (bin centre of the maximum, in value units),
         ``median`` and ``mad`` of the basin samples (value units; in log mode
         also ``mad_log10``), ``fwhm_log10`` or ``fwhm`` (width at half height),
         ``fraction`` (share of all samples in the basin).
