@@ -14,6 +14,8 @@ import numpy as np
 from evedge._cli_options import sensor_option
 
 _CHUNK = 100_000
+#: Most memory the edge frames (one byte per pixel) may take before --fps is refused as a mistake.
+_MAX_FRAME_BYTES = 4 * 2**30
 #: Names of the PNG frames this command writes (and may replace on a rerun).
 _PNG_NAME = re.compile(r"edges_\d{6}_-?\d+us\.png")
 
@@ -161,6 +163,13 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, so
     except (ValueError, TypeError, OSError) as err:
         raise click.ClickException(str(err)) from None
     events, size = rec.events, rec.sensor_size
+    if times is None and events.size:
+        n_frames = int((int(events["t"][-1]) - int(events["t"][0])) * fps / 1e6)
+        if n_frames * size.width * size.height > _MAX_FRAME_BYTES:
+            raise click.BadParameter(
+                f"{n_frames} edge frames of {size.width}x{size.height} over the recording would need "
+                f"{n_frames * size.width * size.height / 2**30:.1f} GiB; lower --fps or give --times",
+                param_hint="'--fps'")
     frame_t = _frame_times(events, fps, times)
     lifetimes = kept = None
     if method in ("intra", "mueggler"):

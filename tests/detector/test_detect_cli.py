@@ -132,3 +132,15 @@ def test_detect_rerun_replaces_frames_and_sort_option(tmp_path, edge_events):
     assert res.exit_code == 1 and "--sort" in res.output
     res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet", "--sort"])
     assert res.exit_code == 0, res.output
+
+
+def test_detect_refuses_a_frame_rate_that_cannot_fit(tmp_path, edge_events):
+    """--fps 1e9 over a recording would allocate terabytes of frames: refuse it up front."""
+    ev, _ = edge_events(10, 10, 1000, 0.0)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10", "--quiet",
+                                      "--fps", "1e12"])
+    assert res.exit_code == 2 and isinstance(res.exception, SystemExit), res.output
+    assert "--fps" in res.output and "GiB" in res.output
+    assert not (tmp_path / "o").exists()
