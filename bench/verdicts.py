@@ -145,12 +145,16 @@ def _cdm_one(scene: str, truth: str, per_method: dict, diag: dict, display: str)
                 why = _why(diag, truth, s, b, med)
                 if why:
                     whys.append(why)
-    holds = not losses
+    # a baseline that was not run cannot be beaten: the claim names all three
+    missing = [b for b in BASELINES if b not in med]
+    holds = False if losses else (None if missing else True)
     ev = "; ".join(parts)
     if losses:
         ev = "not beaten by: " + ", ".join(losses) + ". Medians: " + ev
         if whys:
             ev += ". Why: " + " | ".join(whys)
+    if missing:
+        ev += f". Not run, so not compared: {', '.join(missing)}"
     out.append(_verdict(holds, f"{where} Proposed beats Mueggler, 1 ms and 30 ms "
                                f"(median CDM) in both the slow and the fast section", ev,
                         {"medians": med}, display))
@@ -178,8 +182,11 @@ def _cdm_one(scene: str, truth: str, per_method: dict, diag: dict, display: str)
     if "acc_count" in gap and not gap["proposed"] < gap["acc_count"]:
         ev += (". Note: fixed-count accumulation is more consistent still (by construction its maps "
                "have the same number of pixels at any speed)")
-    out.append(_verdict(not worse, f"{where} Proposed CDM is more consistent across "
-                                   f"speeds than Mueggler, 1 ms and 30 ms", ev, {"gap": gap}, display))
+    if missing:
+        ev += f". Not run, so not compared: {', '.join(missing)}"
+    consistent = False if worse else (None if missing else True)
+    out.append(_verdict(consistent, f"{where} Proposed CDM is more consistent across "
+                                    f"speeds than Mueggler, 1 ms and 30 ms", ev, {"gap": gap}, display))
     return out
 
 
@@ -400,6 +407,9 @@ def real_verdicts(real: dict, displays=DISPLAYS) -> list[dict]:
                 if not np.isfinite(p):
                     holds = None
                     ev += "; the proposed method has no finite median CDM here"
+                elif not others:
+                    holds = None
+                    ev += "; no other method has a finite median CDM here: nothing to compare"
                 else:
                     holds = all(p > q for q in others)
                     tied = [m for m, v in med.items() if m != "proposed" and np.isfinite(v) and v == p]

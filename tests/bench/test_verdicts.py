@@ -229,3 +229,15 @@ def test_real_verdict_does_not_depend_on_method_order_ties_or_nan():
     others_nan = {"r": {"proposed": {"median": {"c": 50.0}}, "mueggler": {"median": {"c": nan}},
                         "acc_1ms": {"median": {"c": 49.0}}}}
     assert real_verdicts(others_nan, displays=PRIMARY_ONLY)[0]["status"] == "holds"
+
+
+def test_missing_baselines_are_not_beaten_vacuously():
+    """Regression: with a baseline absent the CDM claims held without comparing to it."""
+    only_1ms = _cdm(80, 78, {"acc_1ms": (20, 40)})
+    v = cdm_verdicts(only_1ms, displays=PRIMARY_ONLY)
+    assert [x["status"] for x in v] == ["not checked", "not checked"]
+    assert all("Not run, so not compared: mueggler, acc_30ms" in x["evidence"] for x in v)
+    lost = _cdm(30, 28, {"acc_1ms": (40, 45)})  # a comparison that was made and lost still fails
+    assert cdm_verdicts(lost, displays=PRIMARY_ONLY)[0]["status"] == "fails"
+    alone = {"r": {"proposed": {"median": {"c": 50.0}}}}
+    assert real_verdicts(alone, displays=PRIMARY_ONLY)[0]["status"] == "not checked"
