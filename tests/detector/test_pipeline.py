@@ -65,9 +65,19 @@ def test_method_and_param_errors(edge_events):
 
 
 @pytest.mark.skipif(importlib.util.find_spec("evedge.detector.mueggler") is None, reason="baseline absent")
-def test_mueggler_method_runs(edge_events):
-    size = SensorSize(16, 16)
-    ev, tau = edge_events(16, 16, 500, 0.4, n_edges=2, spacing_px=8)
+def test_mueggler_method_runs(edge_events, random_events):
+    from evedge.detector.mueggler import MuegglerParams, estimate_lifetimes_mueggler
+
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
     res = detect(ev, size, method="mueggler")
     assert res.kept.all()  # no buffer by default for the baseline
-    assert res.lifetimes.shape == ev.shape and res.lifetimes["valid"].any()
+    assert res.lifetimes["valid"].any()
+    assert res.lifetimes.tobytes() == estimate_lifetimes_mueggler(ev, size).tobytes()
+    # with the buffer: the baseline sees only the kept events, filtered ones have no estimate
+    params = MuegglerParams(seed=5)
+    buf = detect(ev, size, method="mueggler", use_buffer=True, params=params)
+    np.testing.assert_array_equal(buf.kept, filter_events(ev, size))
+    assert 0 < (~buf.kept).sum()
+    assert not buf.lifetimes["valid"][~buf.kept].any()
+    assert buf.lifetimes[buf.kept].tobytes() == estimate_lifetimes_mueggler(ev[buf.kept], size, params).tobytes()
