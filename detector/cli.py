@@ -171,6 +171,10 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, so
                 f"{n_frames * size.width * size.height / 2**30:.1f} GiB; lower --fps or give --times",
                 param_hint="'--fps'")
     frame_t = _frame_times(events, fps, times)
+    if frame_t.size == 0 and events.size:
+        span = int(events["t"][-1]) - int(events["t"][0])
+        click.echo(f"Warning: no edge frame: the events span {span} us, less than one frame period "
+                   f"({1e6 / fps:.0f} us at --fps {fps:g}); pass --times or a higher --fps", err=True)
     lifetimes = kept = None
     if method in ("intra", "mueggler"):
         from .edges import edge_frames
