@@ -150,11 +150,10 @@ def test_detect_warns_when_no_frame_fits(tmp_path):
     """A recording shorter than one frame period gets no frame at the default rate: say so on stderr."""
     src = tmp_path / "one.txt"
     src.write_text("0.001 1 1 1\n0.002 2 2 0\n")
-    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10",
-                                                      "--quiet"])
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10", "--quiet"])
     assert res.exit_code == 0, res.output
     assert "0 edge frames" in res.stdout
     assert "no edge frame" in res.stderr and "--times" in res.stderr
     res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10",
-                                                      "--quiet", "--times", "1500"])
+                                      "--quiet", "--times", "1500"])
     assert res.exit_code == 0 and "1 edge frames" in res.stdout and res.stderr == ""
