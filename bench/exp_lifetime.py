@@ -51,7 +51,7 @@ from ._plot import METHOD_COLOURS, pyplot
 from .exp_real import default_realdata_dir
 from .exp_similarity import simulate_scene
 from .methods import METHOD_LABELS, mueggler_lifetimes, proposed_lifetimes
-from .regions import regions_from_delays, regions_from_truth, row_agreement
+from .regions import NoRegionsError, regions_from_delays, regions_from_truth, row_agreement
 from .stats import histogram_peaks, log_spread, relative_errors, shoulder_peaks
 
 LIFETIME_METHODS = ("proposed", "mueggler")
@@ -163,15 +163,16 @@ def core_regions(regions: dict, margin: int = CORE_MARGIN_ROWS) -> dict:
 
 def _regions(rec, truth) -> dict | None:
     """Speed regions: from the truth when there is one (with the data-driven split's agreement), else data."""
+    # only "no speed bands in these data" means no regions; any other error is a bug and must surface
     try:
         found = regions_from_delays(rec.events, rec.sensor_size)
-    except ValueError:
+    except NoRegionsError:
         found = None
     if truth is None:
         return found
     try:
         known = regions_from_truth(rec.events, truth, rec.sensor_size)
-    except ValueError:  # the truth has no bands of rows: no regions, whatever the data-driven split says
+    except NoRegionsError:  # the truth has no bands of rows: no regions, whatever the data-driven split says
         return None
     if found is not None:
         known["data_driven_rows"] = found["rows"]

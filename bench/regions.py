@@ -27,6 +27,10 @@ import numpy as np
 REGION_NAMES = ("slow", "fast")
 
 
+class NoRegionsError(ValueError):
+    """The data hold no two distinct speed bands of rows (a finding about the data, not a bad argument)."""
+
+
 def neighbour_delays(events: np.ndarray, sensor_size) -> np.ndarray:
     """Per event, the time since the latest earlier event of its polarity at x - 1 or x + 1.
 
@@ -124,6 +128,14 @@ def longest_run(rows) -> np.ndarray:
     return r[starts[k]:ends[k]]
 
 
+
+def _split_rows(log_delays: np.ndarray, who: str):
+    """:func:`two_means_1d` on the rows; rows that cannot be split (all equal) have no speed bands."""
+    try:
+        return two_means_1d(log_delays)
+    except ValueError as err:
+        raise NoRegionsError(f"{who}: {err}") from None
+
 def regions_from_delays(events: np.ndarray, sensor_size, *, min_row_share: float = 0.25,
                         min_ratio: float = 1.25) -> dict:
     """Two speed regions (sets of rows) from the per-row median neighbour delay.
@@ -167,14 +179,14 @@ def regions_from_delays(events: np.ndarray, sensor_size, *, min_row_share: float
     need = min_row_share * (np.median(busy) if busy.size else 0.0)
     use = np.flatnonzero((counts >= max(need, 1)) & np.isfinite(row_med))
     if use.size < 2:
-        raise ValueError("regions_from_delays: fewer than 2 rows with enough events to find speed regions")
-    thr, upper = two_means_1d(np.log10(row_med[use]))
+        raise NoRegionsError("regions_from_delays: fewer than 2 rows with enough events to find speed regions")
+    thr, upper = _split_rows(np.log10(row_med[use]), "regions_from_delays")
     # the regions are bands of rows: each keeps its longest run of consecutive rows
     # (drops stray rows of other objects whose delays happen to fall in its group)
     rows = {"slow": longest_run(use[upper]).tolist(), "fast": longest_run(use[~upper]).tolist()}
     med = {k: float(np.median(dv[np.isin(y, r)])) for k, r in rows.items()}
     if not med["slow"] >= min_ratio * med["fast"]:
-        raise ValueError(f"regions_from_delays: no distinct speed bands (median delays {med['slow']:.0f} and "
+        raise NoRegionsError(f"regions_from_delays: no distinct speed bands (median delays {med['slow']:.0f} and "
                          f"{med['fast']:.0f} us differ by less than a factor {min_ratio:g})")
     return {"method": (f"per-row median of the model-free horizontal neighbour delay; rows with at least "
                        f"{min_row_share:g} x the median row's events; 1-D 2-means on log10 of the row medians; "
@@ -214,8 +226,8 @@ def regions_from_truth(events: np.ndarray, truth_lifetime_us, sensor_size) -> di
         row_med[r] = np.round(np.median(tv[y == r]))
     use = np.flatnonzero(np.isfinite(row_med))
     if use.size < 2:
-        raise ValueError("regions_from_truth: fewer than 2 rows with a true lifetime")
-    thr, upper = two_means_1d(np.log10(row_med[use]))
+        raise NoRegionsError("regions_from_truth: fewer than 2 rows with a true lifetime")
+    thr, upper = _split_rows(np.log10(row_med[use]), "regions_from_truth")
     rows = {"slow": use[upper].tolist(), "fast": use[~upper].tolist()}
     truth = {k: float(np.median(tv[np.isin(y, r)])) for k, r in rows.items()}
     return {"method": "rows grouped by their median true lifetime (simulator truth)", "rows": rows,

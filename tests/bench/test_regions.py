@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from evedge.bench.regions import (longest_run, neighbour_delays, regions_from_delays, regions_from_truth,
+from evedge.bench.regions import (NoRegionsError, longest_run, neighbour_delays, regions_from_delays, regions_from_truth,
                                   row_agreement, two_means_1d)
 from evedge.events import SensorSize, make_events
 
@@ -83,13 +83,28 @@ def test_sparse_rows_are_left_out(two_bands):
 
 def test_no_bands_no_regions(moving_edge, two_bands):
     # one edge over all rows (its speed changes in time, not by row): the rows do not form bands
-    with pytest.raises(ValueError, match="equal"):
+    with pytest.raises(NoRegionsError, match="equal"):
         regions_from_delays(moving_edge.events, moving_edge.sensor_size)
     # bands 10 ms vs 4 ms differ by 2.5x: not distinct when asking for 3x
-    with pytest.raises(ValueError, match="no distinct speed bands"):
+    with pytest.raises(NoRegionsError, match="no distinct speed bands"):
         regions_from_delays(two_bands.events, two_bands.sensor_size, min_ratio=3.0)
-    with pytest.raises(ValueError, match="equal"):
+    with pytest.raises(NoRegionsError, match="equal"):
         regions_from_truth(moving_edge.events, moving_edge.truth["lifetime_us"], moving_edge.sensor_size)
+
+
+def test_only_a_data_finding_means_no_regions(moving_edge, two_bands):
+    """Regression: the lifetime experiment took any ValueError (a wrong truth length, a bad argument) for
+    'no speed bands' and silently switched the lifetime verdict to its fallback measure."""
+    from evedge.bench.exp_lifetime import _regions
+
+    assert _regions(moving_edge, moving_edge.truth["lifetime_us"]) is None  # no bands: a finding
+    assert set(_regions(two_bands, two_bands.truth["lifetime_us"])["rows"]) == {"slow", "fast"}
+    with pytest.raises(ValueError, match="differ") as info:  # a bug: surfaces
+        _regions(two_bands, two_bands.truth["lifetime_us"][:-1])
+    assert not isinstance(info.value, NoRegionsError)
+    with pytest.raises(ValueError, match="min_row_share") as info:
+        regions_from_delays(two_bands.events, two_bands.sensor_size, min_row_share=2.0)
+    assert not isinstance(info.value, NoRegionsError)
 
 
 def test_core_regions_drop_the_band_ends():
