@@ -108,6 +108,17 @@ def test_missing_data_is_skipped_and_a_failure_reported(tmp_path, monkeypatch):
     assert "real" in res["errors"] and "simulated failure" in res["errors"]["real"]
     assert "failed" in (tmp_path / "b" / "report.html").read_text()
 
+    # a simulated experiment has no recording to miss: a FileNotFoundError there (a missing scene
+    # file, say) is a failure, not a skip that would leave its verdicts quietly 'not checked'
+    import evedge.bench.exp_ransac as exp_ransac
+
+    def missing(*args, **kwargs):
+        raise FileNotFoundError("scenes/x.toml")
+
+    monkeypatch.setattr(exp_ransac, "run_ransac_study", missing)
+    res = run_paper(tmp_path / "c", quick=True, progress=False, experiments=("ransac",))
+    assert "ransac" in res["errors"] and "ransac" not in res["skipped"]
+
 
 def test_write_report_minimal(tmp_path):
     path = write_report(tmp_path / "r.html", {"verdicts": [], "run": {}}, figures={}, notes=["a note"])
