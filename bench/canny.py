@@ -100,6 +100,8 @@ def gradient_magnitude(image: np.ndarray, sigma_px: float) -> np.ndarray:
     Border pixels (where canny never marks edges) are set to 0.
     """
     img = _as_unit_float(image)
+    if img.size == 0:
+        return np.zeros(img.shape)
     smoothed = gaussian(img, sigma=sigma_px, mode="constant", cval=0.0, preserve_range=True)
     bleed = gaussian(np.ones_like(img), sigma=sigma_px, mode="constant", cval=0.0, preserve_range=True)
     smoothed = smoothed / (bleed + np.finfo(np.float64).eps)
@@ -126,6 +128,8 @@ def canny_edges(image, setting: CannySetting = CANNY_SETTINGS[0]) -> np.ndarray:
     if not isinstance(setting, CannySetting):
         raise TypeError(f"canny_edges: setting must be a CannySetting, got {type(setting).__name__}")
     img = _as_unit_float(image)
+    if img.size == 0:  # an empty frame has no edges (skimage would fail on it)
+        return np.zeros(img.shape, dtype=bool)
     if setting.mode == "quantile":
         return canny(img, sigma=setting.sigma_px, low_threshold=setting.low,
                      high_threshold=setting.high, use_quantiles=True)

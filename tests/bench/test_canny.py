@@ -58,3 +58,12 @@ def test_input_checks():
         CannySetting("x", 1.0, 0.1, 0.2)
     with pytest.raises(ValueError, match="mode"):
         CannySetting("x", 1.0, 0.2, 0.1, mode="other")
+
+
+@pytest.mark.parametrize("setting", CANNY_SETTINGS, ids=lambda s: s.name)
+def test_empty_image_has_no_edges(setting):
+    """Regression: a 0-pixel frame raised IndexError from inside the gradient code."""
+    for shape in ((0, 0), (0, 7), (5, 0)):
+        out = canny_edges(np.zeros(shape), setting)
+        assert out.shape == shape and out.dtype == bool
+    assert gradient_magnitude(np.zeros((0, 4)), 1.0).shape == (0, 4)
