@@ -193,3 +193,31 @@ def test_cli_bad_bench_options_are_usage_errors(tmp_path):
         assert r.exit_code == code, (args, r.output, r.exception)
         assert isinstance(r.exception, SystemExit), (args, r.exception)
         assert "Error:" in r.output and needle in r.output, (args, r.output)
+
+
+def test_report_states_the_policy_effect_from_the_numbers():
+    """Regression: the report asserted, by hand, that the display policy moves the CDM more than the
+    estimator does (false on slider_depth: about 1 point vs about 40). It now reports both, computed."""
+    from evedge.bench.report import _display_headline, _policy_effect_text
+    from evedge.bench.verdicts import all_verdicts
+
+    def sec(m):
+        return {"slow": {"median": m, "n": 3}, "fast": {"median": m, "n": 3}}
+
+    results = {"cdm": {"s": {"exact": {"proposed": sec(80.0), "proposed_noclear": sec(70.0),
+                                       "mueggler": sec(50.0), "mueggler_noclear": sec(46.0),
+                                       "acc_1ms": sec(10.0), "acc_30ms": sec(20.0)}}},
+               "real": {"r": {"proposed": {"median": {"c": 40.0}}, "proposed_noclear": {"median": {"c": 41.0}},
+                              "mueggler": {"median": {"c": None}}, "mueggler_noclear": {"median": {"c": 5.0}}}},
+               "run": {}}
+    text = _policy_effect_text(results)
+    # policy: |80-70|, |50-46| twice (slow, fast), |40-41|: max 10, median 4;
+    # estimator: |80-50|, |70-46| twice, |41-5| (Mueggler's null median is left out): max 36, median 30
+    assert "by up to 10.0 points, median 4.0" in text
+    assert "by up to 36.0, median 30.0" in text
+    results["real"]["r"]["mueggler"]["median"]["c"] = float("nan")  # in memory, before results.json
+    results["verdicts"] = all_verdicts(results)
+    html_text = _display_headline(results)  # the report's display-policy paragraph
+    assert "moves the CDM more than the estimator" not in html_text
+    assert "by up to 36.0" in html_text
+    assert _policy_effect_text({}) == ""
