@@ -16,9 +16,10 @@
 
 Display policies
 ----------------
-A lifetime method's edge map depends on how its lifetimes are displayed, and
-the policy moves the CDM more than the estimator does, so both lifetime methods
-are always shown under the *same* policy, and every experiment runs both:
+A lifetime method's edge map depends on how its lifetimes are displayed (by
+how much, next to the estimator's own effect, the report computes per run), so
+both lifetime methods are always shown under the *same* policy, and every
+experiment runs both:
 
 ``predecessor`` (primary; method keys ``proposed``, ``mueggler``)
     Mueggler et al.'s display (``clear_behind=True`` in

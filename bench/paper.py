@@ -92,8 +92,8 @@ NOTES = [
     "the evaluated frames (a count that fills about as many pixels as the truth has).",
     "Accumulation baselines and Mueggler use the raw events; the proposed method uses the event buffer "
     "(tau_min = 10 ms) before lifetime estimation, as the paper does.",
-    "Display policy (how lifetimes become an edge map; it moves the CDM more than the estimator does, so both "
-    "lifetime methods always get the same one). 'predecessor' (PRIMARY; result keys proposed, mueggler): each "
+    "Display policy (how lifetimes become an edge map; both lifetime methods always get the same one, and the "
+    "report gives how far the policy and the estimator each move the median CDM in this run). 'predecessor' (PRIMARY; result keys proposed, mueggler): each "
     "event keeps its pixel alive for its lifetime and clears the 8-neighbour behind it in its motion direction, "
     "as Mueggler et al.'s MATLAB display does; it is primary because the authors' code is a fork of that code "
     "(lee-sangil/rpg_event_lifetime) and inherits the display, and it treats both methods alike. "

@@ -221,3 +221,6 @@ def test_report_states_the_policy_effect_from_the_numbers():
     assert "moves the CDM more than the estimator" not in html_text
     assert "by up to 36.0" in html_text
     assert _policy_effect_text({}) == ""
+    from evedge.bench.paper import NOTES
+
+    assert not any("more than the estimator" in n for n in NOTES)
