@@ -118,6 +118,14 @@ class ConverterParams:
         for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us"):
             if getattr(self, name) < 0:
                 raise ValueError(f"ConverterParams.{name} must be >= 0, got {getattr(self, name)}")
+        # upper bounds: beyond them the output is meaningless or the simulation never ends
+        for name, hi, why in (
+            ("lambda_", 1.0, "a step may not cross more than one threshold"),
+            ("noise_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("jitter_us", 1e12, "jittered times must stay inside int64 microseconds"),
+        ):
+            if getattr(self, name) > hi:
+                raise ValueError(f"ConverterParams.{name} must be <= {hi:g} ({why}), got {getattr(self, name)}")
 
 
 def _seeds(seed: int):

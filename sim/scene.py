@@ -27,6 +27,8 @@ SENSOR_PRESETS = {
 }
 
 SCENE_KINDS = ("stripes", "shapes", "mesh")
+#: Longest scene: event times are int64 microseconds (2**63 us is about 9.22e12 s).
+MAX_DURATION_S = 9e12
 SHAPE_KINDS = ("triangle", "square", "hexagon", "star", "circle", "polygon")
 
 
@@ -205,8 +207,8 @@ def _params(t: _Table) -> ConverterParams:
         contrast_sigma=t.number("contrast_sigma", d.contrast_sigma, lo=0),
         min_contrast=t.number("min_contrast", d.min_contrast, lo=0, lo_open=True),
         refractory_us=t.number("refractory_us", d.refractory_us, lo=0),
-        noise_rate_hz=t.number("noise_rate_hz", d.noise_rate_hz, lo=0),
-        jitter_us=t.number("jitter_us", d.jitter_us, lo=0),
+        noise_rate_hz=t.number("noise_rate_hz", d.noise_rate_hz, lo=0, hi=1e6),
+        jitter_us=t.number("jitter_us", d.jitter_us, lo=0, hi=1e12),
         log_eps=t.number("log_eps", d.log_eps, lo=0, lo_open=True),
         lambda_=t.number("lambda", d.lambda_, lo=0, lo_open=True, hi=1.0),
         min_rate_hz=t.number("min_rate_hz", d.min_rate_hz, lo=0, lo_open=True),
@@ -354,7 +356,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     head = top.table("scene", required=True)
     name = head.string("name", Path(source).stem)
     kind = head.string("kind", choices=SCENE_KINDS)
-    duration = head.number("duration_s", lo=0, lo_open=True)
+    duration = head.number("duration_s", lo=0, lo_open=True, hi=MAX_DURATION_S)
     seed = head.number("seed", 0, lo=0, integer=True)
     frame_rate = head.number("frame_rate_hz", 100.0, lo=0)
     background = head.number("background", 0.8 if kind == "shapes" else 0.5, lo=0, hi=1)

@@ -12,7 +12,7 @@ import numpy as np
 
 from evedge.events import Frames, Recording, SensorSize
 from .converter import EventConverter
-from .scene import Scene, load_scene
+from .scene import MAX_DURATION_S, Scene, load_scene
 from .truth import TRUTH_DTYPE
 
 #: What the frames of a simulated recording hold.
@@ -98,6 +98,9 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not duration_s > 0 \
                 or not math.isfinite(duration_s):
             raise ValueError(f"duration_s must be a positive number, got {duration_s!r}")
+        if duration_s > MAX_DURATION_S:
+            raise ValueError(f"duration_s must be <= {MAX_DURATION_S:g} (event times are int64 microseconds), "
+                             f"got {duration_s!r}")
         scene = replace(scene, duration_s=float(duration_s))
     if frame_rate_hz is None:
         frame_rate_hz = scene.frame_rate_hz
@@ -123,7 +126,7 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
             frame_t = np.arange(n_frames) / frame_rate_hz if n_frames else np.empty(0)
             images = np.empty((frame_t.shape[0], scene.sensor.height, scene.sensor.width), dtype=np.float32)
             edges = np.empty(images.shape, dtype=bool)
-        except MemoryError:
+        except (MemoryError, ValueError):  # numpy: ValueError 'Maximum allowed size exceeded'
             gib = n_frames * scene.sensor.height * scene.sensor.width * 5 / 2**30
             raise MemoryError(
                 f"simulate: {n_frames} frames and edge maps of {scene.sensor.width}x{scene.sensor.height} "
