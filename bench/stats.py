@@ -10,6 +10,18 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks, peak_widths
 
 
+def _as_decision(values, name: str) -> np.ndarray:
+    """Bool, or numbers that are all 0/1; anything else (NaN, scores) would be cast to True silently."""
+    v = np.asarray(values)
+    if v.dtype == bool:
+        return v
+    if v.dtype.kind not in "iuf":
+        raise TypeError(f"f_measure: {name} must be boolean (or 0/1 numbers), got dtype {v.dtype}")
+    if not np.all((v == 0) | (v == 1)):
+        raise ValueError(f"f_measure: {name} must hold only 0/1 (or bool) values")
+    return v.astype(bool)
+
+
 def f_measure(predicted, truth) -> float:
     """F1 score of a boolean decision against the truth.
 
@@ -20,10 +32,10 @@ def f_measure(predicted, truth) -> float:
 
     Parameters
     ----------
-    predicted, truth : array_like of bool, same shape
+    predicted, truth : array_like of bool (or 0/1 numbers), same shape
     """
-    p = np.asarray(predicted, dtype=bool)
-    t = np.asarray(truth, dtype=bool)
+    p = _as_decision(predicted, "predicted")
+    t = _as_decision(truth, "truth")
     if p.shape != t.shape:
         raise ValueError(f"f_measure: predicted {p.shape} and truth {t.shape} differ in shape")
     tp = int(np.count_nonzero(p & t))

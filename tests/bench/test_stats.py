@@ -17,6 +17,14 @@ def test_f_measure_known_values():
     assert f_measure(np.ones(3, bool), np.zeros(3, bool)) == 0.0
     with pytest.raises(ValueError, match="shape"):
         f_measure(np.zeros(3, bool), np.zeros(4, bool))
+    # 0/1 numbers are decisions; NaN or scores were silently cast to True (F = 1 against all-True truth)
+    assert f_measure([1, 0, 1], [1.0, 0.0, 0.0]) == pytest.approx(2 / 3)
+    with pytest.raises(ValueError, match="predicted must hold only 0/1"):
+        f_measure(np.full(3, np.nan), np.ones(3, bool))
+    with pytest.raises(ValueError, match="truth must hold only 0/1"):
+        f_measure(np.ones(3, bool), [0.2, 0.9, 1.0])
+    with pytest.raises(TypeError, match="predicted must be boolean"):
+        f_measure(np.array(["a", "b", "c"]), np.ones(3, bool))
 
 
 def test_relative_errors_drop_invalid():
