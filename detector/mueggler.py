@@ -135,6 +135,7 @@ import numpy as np
 from evedge.events import SensorSize, validate_events
 
 from ._mueggler_kernels import NEVER_FIRED, _mueggler_kernel
+from ._checks import check_sensor_size
 from .result import LIFETIME_DTYPE
 
 __all__ = ["MuegglerParams", "MuegglerLifetime", "estimate_lifetimes_mueggler"]
@@ -259,7 +260,7 @@ class MuegglerLifetime:
 
     Parameters
     ----------
-    sensor_size : SensorSize
+    sensor_size : SensorSize or (width, height)
         Sensor size; events must lie inside it.
     params : MuegglerParams, optional
         Defaults to the paper's values.
@@ -278,8 +279,7 @@ class MuegglerLifetime:
     def __init__(
         self, sensor_size: SensorSize, params: MuegglerParams | None = None, *, time_origin_us: int | None = None
     ) -> None:
-        if not isinstance(sensor_size, SensorSize):
-            raise TypeError(f"sensor_size must be an evedge.events.SensorSize, got {type(sensor_size).__name__}")
+        sensor_size = check_sensor_size(sensor_size)  # as every other detector entry point
         if params is None:
             params = MuegglerParams()
         if not isinstance(params, MuegglerParams):
@@ -342,6 +342,11 @@ class MuegglerLifetime:
             raise ValueError(
                 f"chunk: event 0 has t={int(t[0])} us, before time_origin_us={self.time_origin_us}"
             )
+        if int(t[-1]) - self.time_origin_us > np.iinfo(np.int64).max:  # t - origin would wrap around
+            raise ValueError(
+                f"time_origin_us={self.time_origin_us} is too far before the events (t={int(t[-1])} us): "
+                "their difference does not fit in int64 microseconds"
+            )
         t_rel = t - self.time_origin_us
         x = np.ascontiguousarray(chunk["x"], dtype=np.int64)
         y = np.ascontiguousarray(chunk["y"], dtype=np.int64)
@@ -382,7 +387,7 @@ def estimate_lifetimes_mueggler(
     ----------
     events : numpy.ndarray
         Time-sorted events of :data:`evedge.events.EVENT_DTYPE`.
-    sensor_size : SensorSize
+    sensor_size : SensorSize or (width, height)
     params : MuegglerParams, optional
         Defaults to the paper's values (N = 5, eps = 0.4, mu = 1e-4, prior on).
     time_origin_us : int, optional

@@ -204,7 +204,7 @@ def test_params_frozen():
 def test_input_validation():
     sensor = SensorSize(16, 16)
     with pytest.raises(TypeError, match="sensor_size"):
-        MuegglerLifetime((16, 16))
+        MuegglerLifetime(16)
     with pytest.raises(TypeError, match="params"):
         MuegglerLifetime(sensor, {"seed": 1})
     with pytest.raises(TypeError, match="chunk"):
@@ -447,3 +447,17 @@ def test_stripes_two_lifetime_peaks():
     assert 3500 < centres[0] < 5000
     assert 8500 < centres[1] < 10500
     assert props["prominences"][top[1]] > 2 * props["prominences"][top[2]]  # two clear peaks
+
+
+def test_sensor_size_forms_and_far_time_origin():
+    """The baseline takes (width, height) like every other entry point; an origin so far back that
+    t - origin wraps around int64 is refused (it used to give silently wrong planes)."""
+    ev = make_events([1, 2, 3], [1, 1, 1], [10, 20, 30], [True] * 3)
+    want = estimate_lifetimes_mueggler(ev, SensorSize(10, 10))
+    assert estimate_lifetimes_mueggler(ev, (10, 10)).tobytes() == want.tobytes()
+    assert estimate_lifetimes_mueggler(ev, "10x10").tobytes() == want.tobytes()
+    with pytest.raises(TypeError, match="sensor_size"):
+        estimate_lifetimes_mueggler(ev, 10)
+    with pytest.raises(ValueError, match="does not fit in int64"):
+        estimate_lifetimes_mueggler(ev, (10, 10), time_origin_us=-(2**63))
+    estimate_lifetimes_mueggler(ev, (10, 10), time_origin_us=-(2**62))  # far, but representable
