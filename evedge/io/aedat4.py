@@ -64,7 +64,12 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
         kinds = sorted({s.get("type", "?") for s in streams.values()})
         raise EventFileError(f"{path}: AEDAT4 file has no event stream (streams: {', '.join(kinds)})")
     sid = event_ids[0]
-    file_size = SensorSize(int(streams[sid]["width"]), int(streams[sid]["height"]))
+    try:
+        file_size = SensorSize(int(streams[sid]["width"]), int(streams[sid]["height"]))
+    except KeyError as err:
+        raise EventFileError(f"{path}: event stream {sid} has no {err.args[0]!r} in its description") from None
+    except (TypeError, ValueError) as err:
+        raise EventFileError(f"{path}: event stream {sid} has a bad sensor size: {err}") from None
     if sensor_size is not None and sensor_size != file_size:
         raise EventFileError(
             f"{path}: sensor size {sensor_size.width}x{sensor_size.height} was given but the file's "

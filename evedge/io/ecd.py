@@ -107,7 +107,10 @@ def _read_frames(images_txt: Path) -> Frames:
             raise EventFileError(f"{where}: time {tokens[0].decode('utf-8', 'replace')!r} is not a number") from None
         if not np.isfinite(t_s) or abs(t_s * 1e6) >= 2.0**63:
             raise EventFileError(f"{where}: time {t_s!r} is not finite or out of the int64 microsecond range")
-        png = folder / tokens[1].decode("utf-8")
+        try:
+            png = folder / tokens[1].decode("utf-8")
+        except UnicodeDecodeError:
+            raise EventFileError(f"{where}: frame path {tokens[1]!r} is not UTF-8 text") from None
         try:
             with Image.open(png) as im:
                 if im.mode != "L":

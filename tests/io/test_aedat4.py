@@ -54,3 +54,9 @@ def test_detected_by_magic_bytes_without_extension(tmp_path, write_aedat4):
     path = write_aedat4(tmp_path / "recording.bin", 8, 8, [([1], [2], [3], [0])])
     rec = read_events(path)
     assert rec.events["y"].tolist() == [2] and rec.metadata["format"] == "aedat4"
+
+
+def test_impossible_sensor_size_in_the_description_names_the_file(tmp_path, write_aedat4):
+    path = write_aedat4(tmp_path / "a.aedat4", 0, 8, [([0], [1], [5], [1])])
+    with pytest.raises(EventFileError, match=r"a\.aedat4: event stream 0 has a bad sensor size: SensorSize\.width"):
+        read_events(path)

@@ -233,3 +233,10 @@ def test_folder_path_that_is_a_file_or_foreign_images_folder(tmp_path):
     with pytest.raises(FileExistsError, match=r"images holds mine\.jpg, not frames written by write_ecd"):
         write_ecd(tmp_path / "seq", _recording())
     assert sorted(p.name for p in (tmp_path / "seq").rglob("*")) == ["images", "mine.jpg"]
+
+
+def test_frame_path_not_utf8_names_the_line(tmp_path):
+    _write(tmp_path, "0.1 1 1 1\n")
+    (tmp_path / "images.txt").write_bytes(b"# frames\n0.1 images/\xff.png\n")
+    with pytest.raises(EventFileError, match=r"images\.txt: line 2: frame path b'images/\\xff\.png' is not UTF-8 text"):
+        read_events(tmp_path)
