@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import platform
 import sys
@@ -46,6 +47,17 @@ def _jsonable(value):
     if hasattr(value, "isoformat"):
         return value.isoformat()
     return value
+
+
+def _is_real(value) -> bool:
+    """A real number, numpy scalars included (``np.float32(0.1)``), but not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _time_s(t_s, who: str) -> float:
+    if not _is_real(t_s) or not math.isfinite(t_s):
+        raise ValueError(f"{who}: t_s must be a finite number of seconds, got {t_s!r}")
+    return float(t_s)
 
 
 def _as_scene(scene) -> Scene:
@@ -95,7 +107,7 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
         scene = replace(scene, seed=int(seed))
     if duration_s is not None:
-        if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not duration_s > 0 \
+        if not _is_real(duration_s) or not duration_s > 0 \
                 or not math.isfinite(duration_s):
             raise ValueError(f"duration_s must be a positive number, got {duration_s!r}")
         if duration_s > MAX_DURATION_S:
@@ -104,13 +116,15 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         scene = replace(scene, duration_s=float(duration_s))
     if frame_rate_hz is None:
         frame_rate_hz = scene.frame_rate_hz
-    if not (isinstance(frame_rate_hz, (int, float)) and frame_rate_hz >= 0 and math.isfinite(frame_rate_hz)):
+    if not (_is_real(frame_rate_hz) and frame_rate_hz >= 0 and math.isfinite(frame_rate_hz)):
         raise ValueError(f"frame_rate_hz must be >= 0, got {frame_rate_hz!r}")
+    frame_rate_hz = float(frame_rate_hz)
     if frame_rate_hz > 1e6:
         # frame times are whole microseconds: faster frames would share timestamps
         raise ValueError(f"frame_rate_hz must be <= 1e6 (frame times are whole microseconds), got {frame_rate_hz!r}")
-    if not (isinstance(chunk_s, (int, float)) and chunk_s > 0 and math.isfinite(chunk_s)):
+    if not (_is_real(chunk_s) and chunk_s > 0 and math.isfinite(chunk_s)):
         raise ValueError(f"chunk_s must be > 0, got {chunk_s!r}")
+    chunk_s = float(chunk_s)  # a numpy float32 would turn the chunk targets into float32
     params = scene.params if lambda_ is None else replace(scene.params, lambda_=lambda_)
 
     from tqdm import tqdm
@@ -199,10 +213,38 @@ def _query_once(scene, query):
 
 
 def render_frame(scene, t_s: float) -> np.ndarray:
-    """Clean linear intensity (H, W) float64 of ``scene`` (Scene or file) at ``t_s``."""
-    return _query_once(scene, lambda r: r.intensity(float(t_s)))
+    """Clean linear intensity of ``scene`` at ``t_s``.
+
+    Parameters
+    ----------
+    scene : Scene, str or path-like
+        A validated scene or a scene TOML file.
+    t_s : float
+        Time in seconds (finite).
+
+    Returns
+    -------
+    numpy.ndarray
+        (height, width) float64 in [0, 1].
+    """
+    t_s = _time_s(t_s, "render_frame")
+    return _query_once(scene, lambda r: r.intensity(t_s))
 
 
 def edge_map(scene, t_s: float) -> np.ndarray:
-    """Exact edge map (H, W) bool of ``scene`` (Scene or file) at ``t_s`` (definition in :mod:`evedge.sim.planar`)."""
-    return _query_once(scene, lambda r: r.edges(float(t_s)))
+    """Exact edge map of ``scene`` at ``t_s`` (definition in :mod:`evedge.sim.planar`).
+
+    Parameters
+    ----------
+    scene : Scene, str or path-like
+        A validated scene or a scene TOML file.
+    t_s : float
+        Time in seconds (finite).
+
+    Returns
+    -------
+    numpy.ndarray
+        (height, width) bool, True on edge pixels.
+    """
+    t_s = _time_s(t_s, "edge_map")
+    return _query_once(scene, lambda r: r.edges(t_s))

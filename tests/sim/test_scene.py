@@ -158,3 +158,19 @@ def test_simulate_and_converter_params_bound_what_the_scene_bounds():
     for name, value in (("lambda_", 2.0), ("noise_rate_hz", 1e300), ("jitter_us", 1e300)):
         with pytest.raises(ValueError, match=f"ConverterParams.{name} must be <= "):
             ConverterParams(**{name: value})
+
+
+def test_numpy_scalars_are_numbers_and_non_finite_times_are_refused():
+    import numpy as np
+
+    from evedge.sim import edge_map, render_frame
+
+    scene = parse_scene(_base())
+    a = simulate(scene, duration_s=np.float64(0.01), frame_rate_hz=np.int64(100), chunk_s=np.float32(0.005),
+                 progress=False)
+    b = simulate(scene, duration_s=0.01, frame_rate_hz=100.0, chunk_s=0.005, progress=False)
+    np.testing.assert_array_equal(a.events, b.events)
+    assert len(a.frames) == 2
+    for func in (render_frame, edge_map):
+        with pytest.raises(ValueError, match=f"{func.__name__}: t_s must be a finite number of seconds, got nan"):
+            func(scene, float("nan"))
