@@ -109,6 +109,8 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
 def _open(path: Path):
     import h5py
 
+    if path.is_dir():
+        raise EventFileError(f"{path}: is a folder, not an HDF5 file")
     try:
         f = h5py.File(path, "r")
     except OSError as err:

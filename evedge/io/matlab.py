@@ -62,8 +62,9 @@ def read_mat(
         content = scipy.io.loadmat(path)
     except NotImplementedError as err:  # v7.3 files are HDF5 inside
         raise EventFileError(f"{path}: MATLAB v7.3 files are not supported; save with -v7: {err}") from err
-    except (ValueError, TypeError, OSError, scipy.io.matlab.MatReadError) as err:
-        # MatReadError (empty or truncated file) is a bare Exception, not a ValueError
+    except Exception as err:  # noqa: BLE001
+        # scipy's parser fails on garbage in many ways (MatReadError, IndexError, struct.error, ...);
+        # all mean the same to the user: this is not a .mat file it can read
         raise EventFileError(f"{path}: not a readable MATLAB .mat file: {err}") from err
     if variable not in content:
         found = sorted(k for k in content if not k.startswith("__")) or ["none"]

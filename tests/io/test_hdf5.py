@@ -180,3 +180,8 @@ def test_written_file_gets_the_umask_mode(tmp_path, small_recording):
     finally:
         os.umask(mask)
     assert stat.S_IMODE(path.stat().st_mode) == 0o644  # not mkstemp's 0600
+
+
+def test_folder_read_as_hdf5_is_named(tmp_path):
+    with pytest.raises(EventFileError, match=r"is a folder, not an HDF5 file"):
+        read_events(tmp_path, format="hdf5")

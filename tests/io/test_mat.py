@@ -100,3 +100,11 @@ def test_empty_or_truncated_file_is_an_event_file_error(tmp_path):
 def test_doubles_beyond_int64_are_an_error_not_a_wrapped_value(tmp_path):
     with pytest.raises(EventFileError, match=r"row 3 \(0-based\): column 't' = 1e\+30 is out of the int64 range"):
         read_mat(_save(tmp_path, events=_edited(3, 3, 1e30, np.float64)))
+
+
+def test_text_file_read_as_mat_is_an_event_file_error(tmp_path):
+    # scipy fails with an IndexError on this one
+    path = tmp_path / "events.txt"
+    path.write_text("0.1 1 1 1\n0.05 2 2 0\n")
+    with pytest.raises(EventFileError, match=r"events\.txt: not a readable MATLAB \.mat file"):
+        read_mat(path)
