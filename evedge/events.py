@@ -160,6 +160,11 @@ def find_out_of_sensor(x, y, sensor_size: SensorSize) -> tuple[str, int, int] | 
 def find_time_decrease(t) -> tuple[int, int] | None:
     """The first timestamp earlier than the one before it.
 
+    Parameters
+    ----------
+    t : array_like of int
+        Timestamps (microseconds).
+
     Returns
     -------
     tuple of (int, int) or None
@@ -176,6 +181,20 @@ def find_time_decrease(t) -> tuple[int, int] | None:
 
 def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *, name: str = "events") -> np.ndarray:
     """Check an event array and return it unchanged.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Events of :data:`EVENT_DTYPE`, 1-D.
+    sensor_size : SensorSize, optional
+        When given, every ``x`` must lie in ``[0, width)`` and ``y`` in ``[0, height)``.
+    name : str
+        What to call the array in messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``events`` itself.
 
     Raises
     ------
@@ -212,7 +231,18 @@ def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *
 
 
 def sort_events(events: np.ndarray) -> np.ndarray:
-    """Return the events sorted by time (stable: equal timestamps keep their order)."""
+    """Return the events sorted by time (stable: equal timestamps keep their order).
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Events of :data:`EVENT_DTYPE`.
+
+    Returns
+    -------
+    numpy.ndarray
+        A sorted copy.
+    """
     return events[np.argsort(events["t"], kind="stable")]
 
 

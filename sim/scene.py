@@ -347,6 +347,17 @@ def _mesh(top: _Table):
 def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     """Validate a scene dict (the parsed TOML) and return a :class:`Scene`.
 
+    Parameters
+    ----------
+    data : dict
+        The scene, as :func:`tomllib.loads` gives it (schema in ``sim/SCENES.md``).
+    source : str
+        The file name quoted in messages (and the default scene name's stem).
+
+    Returns
+    -------
+    Scene
+
     Raises
     ------
     SceneError
@@ -388,7 +399,22 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
 
 
 def load_scene(path) -> Scene:
-    """Read and validate a scene file (TOML, schema in ``sim/SCENES.md``)."""
+    """Read and validate a scene file (TOML, schema in ``sim/SCENES.md``).
+
+    Parameters
+    ----------
+    path : path-like
+        The scene file.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        Unreadable file, invalid TOML or UTF-8, or any invalid key (named).
+    """
     path = Path(path)
     try:
         text = path.read_bytes()

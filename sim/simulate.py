@@ -80,7 +80,8 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
     seed : int, optional
         Overrides the scene's seed (threshold mismatch, noise, jitter).
     duration_s : float, optional
-        Overrides the scene's duration.
+        Overrides the scene's duration (> 0, <= 9e12 s: times are int64
+        microseconds).
     frame_rate_hz : float, optional
         Rate of the clean frames and edge maps (default: the scene's
         ``frame_rate_hz``, 100 Hz unless set); 0 for none. Frames are at
@@ -100,6 +101,16 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         aligned), ``frames`` (float32 linear intensity in [0, 1]), ``edges``
         (bool, at the frame times) and ``metadata`` (scene dict, sections in
         microseconds, seed, parameters, versions, sample counts).
+
+    Raises
+    ------
+    SceneError
+        ``scene`` is a file that is not a valid scene.
+    ValueError
+        An override out of range (named); ``frame_rate_hz`` above 1e6.
+    MemoryError
+        The frames and edge maps do not fit in memory (their count, size
+        and GiB are named).
     """
     scene = _as_scene(scene)
     if seed is not None:

@@ -282,8 +282,23 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
 def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> Iterator[np.ndarray]:
     """Stream the events of an evedge HDF5 file in chunks of at most ``chunk_size``.
 
-    Each chunk is checked against the sensor and for time order (also across
-    chunk boundaries); a decrease raises :class:`EventFileError`.
+    Parameters
+    ----------
+    path : path-like
+        An evedge HDF5 file (:func:`write_recording`).
+    chunk_size : int
+        Most events per chunk (>= 1).
+
+    Yields
+    ------
+    numpy.ndarray
+        Events of :data:`evedge.events.EVENT_DTYPE`, in file order.
+
+    Raises
+    ------
+    EventFileError
+        As :func:`read_hdf5`. Each chunk is checked against the sensor and
+        for time order (also across chunk boundaries); no ``sort`` option.
     """
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
         raise ValueError(f"iter_hdf5_events: chunk_size must be a positive integer, got {chunk_size!r}")

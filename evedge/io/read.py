@@ -25,6 +25,16 @@ _MAGIC = {
 def detect_format(path: str | os.PathLike) -> str:
     """Name the format of ``path``: a folder is ECD, else by extension, else by magic bytes.
 
+    Parameters
+    ----------
+    path : path-like
+        A file or an Event Camera Dataset folder.
+
+    Returns
+    -------
+    str
+        A key of :data:`FORMATS`: ``"ecd"``, ``"mat"``, ``"hdf5"`` or ``"aedat4"``.
+
     Raises
     ------
     EventFileError

@@ -22,6 +22,11 @@ def peak_count(t_us: np.ndarray, window_us: int) -> int:
 def summarize(recording: Recording) -> dict[str, Any]:
     """Summarise a recording as a JSON-serialisable dict.
 
+    Parameters
+    ----------
+    recording : Recording
+        Events sorted by time (as every reader returns them).
+
     Returns
     -------
     dict
