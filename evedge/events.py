@@ -105,7 +105,12 @@ def make_events(x, y, t, p) -> np.ndarray:
         if c.size and (c.min() < -32768 or c.max() > 32767):
             raise ValueError(f"make_events: column {name!r} out of int16 range")
         out[name] = c
-    out["t"] = cols[2]
+    t = cols[2]
+    # a float beyond +-2**63 or a uint64 above int64 max would wrap silently in the cast
+    if t.size and ((t.dtype.kind == "f" and np.abs(t).max() >= 2.0**63)
+                   or (t.dtype.kind == "u" and int(t.max()) > np.iinfo(np.int64).max)):
+        raise ValueError("make_events: column 't' out of int64 range")
+    out["t"] = t
     out["p"] = cols[3] > 0
     return out
 

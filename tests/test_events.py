@@ -28,6 +28,8 @@ def test_make_events_columns_and_polarity_conventions():
     (([1.5], [1], [1], [0]), "column 'x' must hold integers"),
     (([1], [1], [np.nan], [0]), "column 't' has a non-finite value at index 0"),
     (([40000], [1], [1], [0]), "column 'x' out of int16 range"),
+    (([1], [1], [1e300], [0]), "column 't' out of int64 range"),
+    (([1], [1], np.array([2**63], dtype=np.uint64), [0]), "column 't' out of int64 range"),
 ])
 def test_make_events_errors(cols, message):
     with pytest.raises(ValueError, match=message):
