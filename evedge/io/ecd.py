@@ -236,13 +236,6 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
 # ---------------------------------------------------------------- writing
 
 
-def _atomic_write(target: Path, write) -> None:
-    """Call ``write(file_object)`` on a temp file beside ``target``, then rename it."""
-    with atomic_path(target) as tmp:
-        with open(tmp, "wb") as fh:
-            write(fh)
-
-
 def _format_seconds(t_us: np.ndarray) -> np.ndarray:
     """Columns ``(seconds, microseconds)``: exact decimal seconds without float rounding."""
     return np.stack([t_us // 1_000_000, t_us % 1_000_000], axis=1)
@@ -352,12 +345,15 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
         with atomic_path(folder / "events.txt") as events_tmp:
             with open(events_tmp, "wb") as fh:
                 write_events(fh)
-            # everything is on disk: swap in the frames, then the events (the rename on leaving)
-            _replace_tree(staged, folder / "images")
-            staged = None
             if images is not None:
-                _atomic_write(folder / "images.txt", lambda fh: fh.write("".join(lines).encode()))
+                with atomic_path(folder / "images.txt") as images_tmp:
+                    images_tmp.write_bytes("".join(lines).encode())
+                    # everything is on disk: swap in the PNGs, then images.txt and events.txt
+                    # (renamed on leaving their blocks)
+                    _replace_tree(staged, folder / "images")
+                    staged = None
             else:
+                _replace_tree(None, folder / "images")
                 (folder / "images.txt").unlink(missing_ok=True)
     finally:
         if staged is not None:
