@@ -35,6 +35,7 @@ References
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -164,8 +165,12 @@ class EventConverter:
             raise TypeError("params must be a ConverterParams")
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        if isinstance(duration_s, bool) or not isinstance(duration_s, numbers.Real):
+            raise TypeError(f"duration_s must be a number of seconds, got {duration_s!r}")
         if not (duration_s > 0 and math.isfinite(duration_s)):
             raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
+        if duration_s > 9e12:  # event times are int64 microseconds (the scene's MAX_DURATION_S)
+            raise ValueError(f"duration_s must be <= 9e12, got {duration_s!r}")
         self.renderer = renderer
         self.params = params
         self.seed = int(seed)
@@ -491,7 +496,30 @@ class EventConverter:
         return ev, truth
 
     def process(self, until_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Advance to at least ``until_s`` (or the end) and return the finished ``(events, truth)``."""
+        """Advance to at least ``until_s`` (or the end) and return the finished ``(events, truth)``.
+
+        Parameters
+        ----------
+        until_s : float
+            Simulated time to reach (seconds); a time already passed returns
+            the events finished so far (none, usually).
+
+        Returns
+        -------
+        events : numpy.ndarray
+            :data:`evedge.events.EVENT_DTYPE`, in time order.
+        truth : numpy.ndarray
+            :data:`TRUTH_DTYPE`, aligned with ``events``.
+
+        Raises
+        ------
+        ValueError
+            ``until_s`` is NaN (it would silently do nothing).
+        """
+        if isinstance(until_s, bool) or not isinstance(until_s, numbers.Real):
+            raise TypeError(f"process: until_s must be a number of seconds, got {until_s!r}")
+        if math.isnan(until_s):
+            raise ValueError("process: until_s must not be NaN")
         if self.done:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
         while self.t < min(until_s, self.duration_s):

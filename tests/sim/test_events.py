@@ -248,3 +248,16 @@ def test_jitter_is_a_non_negative_half_normal_latency():
     assert d.min() >= -1 and d.size >= 200 * (n_per_pixel - 1)  # the crossings at t = end may drop
     assert d.mean() == pytest.approx(100.0 * math.sqrt(2 / math.pi), rel=0.05)
     assert d.std() == pytest.approx(100.0 * math.sqrt(1 - 2 / math.pi), rel=0.08)
+
+
+def test_converter_times_are_checked():
+    conv = EventConverter(RampRenderer(0.0, 1.0, 1e-3), ConverterParams(), seed=0, duration_s=0.1)
+    with pytest.raises(ValueError, match="process: until_s must not be NaN"):  # was a silent no-op
+        conv.process(float("nan"))
+    with pytest.raises(TypeError, match="process: until_s must be a number of seconds, got '0.05'"):
+        conv.process("0.05")
+    assert conv.t == 0.0
+    for duration, error, message in ((1e300, ValueError, "duration_s must be <= 9e12"),
+                                     ("1", TypeError, "duration_s must be a number of seconds")):
+        with pytest.raises(error, match=message):
+            EventConverter(RampRenderer(0.0, 1.0, 1e-3), ConverterParams(), seed=0, duration_s=duration)
