@@ -74,44 +74,44 @@ class PlanarMotion:
         return (theta, theta_dot, v0x * t + 0.5 * ax * t * t + amx * sph, v0y * t + 0.5 * ay * t * t + amy * sph,
                 v0x + ax * t + amx * cph, v0y + ay * t + amy * cph)
 
-    def state(self, t):
-        """Return ``theta, theta_dot, sx, sy, vx, vy`` at time(s) ``t``."""
-        if isinstance(t, (float, int)):
-            return self._state_scalar(float(t))
-        t = np.asarray(t, dtype=np.float64)
-        ph = self._phase(t)
+    def state(self, t_s):
+        """Return ``theta, theta_dot, sx, sy, vx, vy`` at time(s) ``t_s``."""
+        if isinstance(t_s, (float, int)):
+            return self._state_scalar(float(t_s))
+        t_s = np.asarray(t_s, dtype=np.float64)
+        ph = self._phase(t_s)
         sph = np.sin(ph)
-        cph = np.cos(ph) * self._phase_rate(t)
-        theta = (self.angle_rad + self.angular_velocity_rad_s * t
-                 + 0.5 * self.angular_acceleration_rad_s2 * t * t + self.angle_amplitude_rad * sph)
-        theta_dot = self.angular_velocity_rad_s + self.angular_acceleration_rad_s2 * t + self.angle_amplitude_rad * cph
+        cph = np.cos(ph) * self._phase_rate(t_s)
+        theta = (self.angle_rad + self.angular_velocity_rad_s * t_s
+                 + 0.5 * self.angular_acceleration_rad_s2 * t_s * t_s + self.angle_amplitude_rad * sph)
+        theta_dot = self.angular_velocity_rad_s + self.angular_acceleration_rad_s2 * t_s + self.angle_amplitude_rad * cph
         (v0x, v0y), (ax, ay), (amx, amy) = self.velocity_px_s, self.acceleration_px_s2, self.amplitude_px
-        sx = v0x * t + 0.5 * ax * t * t + amx * sph
-        sy = v0y * t + 0.5 * ay * t * t + amy * sph
-        vx = v0x + ax * t + amx * cph
-        vy = v0y + ay * t + amy * cph
+        sx = v0x * t_s + 0.5 * ax * t_s * t_s + amx * sph
+        sy = v0y * t_s + 0.5 * ay * t_s * t_s + amy * sph
+        vx = v0x + ax * t_s + amx * cph
+        vy = v0y + ay * t_s + amy * cph
         return theta, theta_dot, sx, sy, vx, vy
 
-    def to_image(self, qx, qy, t: float):
-        """Image position at time ``t`` of object points ``(qx, qy)``."""
-        theta, _, sx, sy, _, _ = self.state(t)
+    def to_image(self, qx, qy, t_s: float):
+        """Image position at time ``t_s`` of object points ``(qx, qy)``."""
+        theta, _, sx, sy, _, _ = self.state(t_s)
         c, s = math.cos(theta), math.sin(theta)
         cx, cy = self.center_px
         dx = np.asarray(qx) - cx
         dy = np.asarray(qy) - cy
         return cx + c * dx - s * dy + sx, cy + s * dx + c * dy + sy
 
-    def flow_at(self, px, py, t):
-        """Motion field (px/s) at image points ``(px, py)`` and time(s) ``t``."""
-        _, w, sx, sy, vx, vy = self.state(t)
+    def flow_at(self, px, py, t_s):
+        """Motion field (px/s) at image points ``(px, py)`` and time(s) ``t_s``."""
+        _, w, sx, sy, vx, vy = self.state(t_s)
         cx, cy = self.center_px
         rx = np.asarray(px) - cx - sx
         ry = np.asarray(py) - cy - sy
         return vx - w * ry, vy + w * rx
 
-    def max_speed_px_s(self, t0: float, t1: float, width: int, height: int) -> float:
-        """Upper bound of the image speed over the sensor during ``[t0, t1]`` (``0 <= t0 <= t1``)."""
-        ends = (float(t0), float(t1))
+    def max_speed_px_s(self, t0_s: float, t1_s: float, width: int, height: int) -> float:
+        """Upper bound of the image speed over the sensor during ``[t0_s, t1_s]`` (``0 <= t0_s <= t1_s``)."""
+        ends = (float(t0_s), float(t1_s))
         rate = 2.0 * math.pi * max(abs(self.frequency_hz + self.chirp_hz_s * t) for t in ends)
         lin = max(math.hypot(self.velocity_px_s[0] + self.acceleration_px_s2[0] * t,
                              self.velocity_px_s[1] + self.acceleration_px_s2[1] * t) for t in ends)
@@ -120,7 +120,7 @@ class PlanarMotion:
         w += abs(self.angle_amplitude_rad) * rate
         if w == 0.0:
             return float(trans)
-        tm = max(abs(t0), abs(t1))
+        tm = max(abs(t0_s), abs(t1_s))
         s_bound = (math.hypot(*self.velocity_px_s) * tm + 0.5 * math.hypot(*self.acceleration_px_s2) * tm * tm
                    + math.hypot(*self.amplitude_px))
         cx, cy = self.center_px
