@@ -1,32 +1,46 @@
 """The project's own HDF5 format: events, per-event truth, frames and edge maps.
 
-Layout (``format="evedge"``, ``format_version=1``)::
+Layout (``format="evedge"``, ``format_version=2``)::
 
     /events/{x, y, t, p}        int16, int16, int64 (us), bool; chunked, gzip
     /truth/<field>              one dataset per field of the structured truth (optional)
-    /frames/{t_us, images}      int64, (n, height, width) (optional)
+    /frames/{t_us, images}      int64, (n, height, width) uint8 or float in [0, 1] (optional)
     /edges/{t_us, images}       int64, (n, height, width) bool (optional)
-    attrs: format, format_version, sensor_width, sensor_height, metadata (JSON)
+    attrs: format, format_version, sensor_width, sensor_height, metadata (JSON),
+           checksums (JSON: sha256 of every dataset and of the other attributes)
 
 Writes are byte-for-byte deterministic: no timestamps (``track_times=False``),
 creation order tracked, fixed chunking and compression, sorted JSON.
+
+Reading trusts nothing in the file: every link must be a hard link inside it
+(no soft, external or virtual datasets), every size a dataset declares is
+checked against the bytes it stores and against the machine's memory before
+anything is read, every dataset and attribute is checked against its sha256
+in ``checksums`` (a flipped byte is an error naming the dataset, never a
+different recording), and values are checked for their documented domain.
+Every failure of HDF5 itself (a corrupt B-tree, a failing filter) is an
+:class:`EventFileError` naming the file and the dataset.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import math
 import os
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
+from .._resources import memory_shortfall
 from ..events import Frames, Recording, SensorSize
 from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError, finish_events, locate_index
 
 FORMAT_NAME = "evedge"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: checksums; version 1 files had none and are refused
 _EVENT_CHUNK = 1 << 18  # 256 k events per chunk: ~0.5-2 MB per column, fast gzip
 _GZIP_LEVEL = 4
 
@@ -103,29 +117,185 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
                 _write_stack(f, "frames", recording.frames)
             if recording.edges is not None:
                 _write_stack(f, "edges", recording.edges)
+            seal(f)
     return path
 
 
-def _open(path: Path):
+#: gzip cannot expand data more than about 1032 times; a chunked, compressed dataset
+#: declaring more bytes than this many times what it stores is lying.
+_MAX_EXPANSION = 1100
+_ATTRS = ("format", "format_version", "sensor_width", "sensor_height", "metadata")
+_HASH_BLOCK = 1 << 20  # rows hashed per read when streaming
+
+
+def _canonical(value):
+    if isinstance(value, np.ndarray):
+        return [value.dtype.str, value.tolist()]
+    if isinstance(value, np.generic):
+        return [value.dtype.str, value.item()]
+    if isinstance(value, bytes):
+        return ["bytes", value.decode("latin-1")]
+    return [type(value).__name__, value]
+
+
+def _attrs_digest(attrs) -> str:
+    content = {name: _canonical(attrs[name]) for name in _ATTRS if name in attrs}
+    return hashlib.sha256(json.dumps(content, sort_keys=True, default=repr).encode()).hexdigest()
+
+
+def _new_hash(dtype: np.dtype, shape: tuple):
+    h = hashlib.sha256()
+    h.update(f"{np.dtype(dtype).str}{tuple(int(n) for n in shape)}".encode())
+    return h
+
+
+def _data_digest(data: np.ndarray) -> str:
+    h = _new_hash(data.dtype, data.shape)
+    h.update(np.ascontiguousarray(data).tobytes())
+    return h.hexdigest()
+
+
+def seal(f) -> None:
+    """Store the sha256 of every dataset and of the attributes in ``f.attrs["checksums"]``.
+
+    Parameters
+    ----------
+    f : h5py.File
+        Open for writing; every dataset is read once.
+    """
+    import h5py
+
+    sums = {}
+
+    def visit(name, obj):
+        if isinstance(obj, h5py.Dataset):
+            sums[name] = _data_digest(obj[()])
+
+    f.visititems(visit)
+    sums["@attrs"] = _attrs_digest(f.attrs)
+    f.attrs["checksums"] = json.dumps(sums, sort_keys=True)
+
+
+@contextmanager
+def _reading(path: Path, place: list):
+    """Turn any failure of HDF5 (or of numpy on what it returned) into an EventFileError."""
+    try:
+        yield
+    except EventFileError:
+        raise
+    except (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError, OverflowError) as err:
+        where = place[0] if place else "the file structure"
+        raise EventFileError(f"{path}: {where}: cannot be read (corrupt file?): {type(err).__name__}: {err}") from None
+
+
+def _open(path: Path, place: list):
     import h5py
 
     if path.is_dir():
         raise EventFileError(f"{path}: is a folder, not an HDF5 file")
     try:
         f = h5py.File(path, "r")
-    except OSError as err:
+    except (OSError, KeyError, RuntimeError, ValueError) as err:
         raise EventFileError(f"{path}: not a readable HDF5 file: {err}") from err
-    fmt = f.attrs.get("format")
-    if isinstance(fmt, bytes):
-        fmt = fmt.decode()
-    if fmt != FORMAT_NAME:
+    try:
+        with _reading(path, place):
+            place[:] = ["attribute 'format'"]
+            fmt = f.attrs.get("format")
+            if isinstance(fmt, bytes):
+                fmt = fmt.decode("utf-8", "replace")
+            if fmt != FORMAT_NAME:
+                raise EventFileError(f"{path}: not an evedge HDF5 file (attribute format={fmt!r}, expected {FORMAT_NAME!r})")
+            place[:] = ["attribute 'format_version'"]
+            version = f.attrs.get("format_version")
+            if not (isinstance(version, (int, np.integer)) and int(version) == FORMAT_VERSION):
+                raise EventFileError(
+                    f"{path}: format_version={version} is not supported (this reader knows {FORMAT_VERSION})")
+            place[:] = ["attribute 'checksums'"]
+            sums = _checksums(f, path)
+    except BaseException:
         f.close()
-        raise EventFileError(f"{path}: not an evedge HDF5 file (attribute format={fmt!r}, expected {FORMAT_NAME!r})")
-    version = f.attrs.get("format_version")
-    if not (isinstance(version, (int, np.integer)) and int(version) == FORMAT_VERSION):
-        f.close()
-        raise EventFileError(f"{path}: format_version={version} is not supported (this reader knows {FORMAT_VERSION})")
-    return f
+        raise
+    return f, sums
+
+
+def _checksums(f, path: Path) -> dict:
+    raw = f.attrs.get("checksums")
+    if raw is None:
+        raise EventFileError(f"{path}: attribute 'checksums' is missing (every evedge HDF5 file has it)")
+    if isinstance(raw, bytes):
+        raw = raw.decode("utf-8", "replace")
+    try:
+        sums = json.loads(raw) if isinstance(raw, str) else None
+    except ValueError:
+        sums = None
+    if not isinstance(sums, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in sums.items()):
+        raise EventFileError(f"{path}: attribute 'checksums' is corrupt (not a JSON object of digests)")
+    if sums.get("@attrs") != _attrs_digest(f.attrs):
+        raise EventFileError(
+            f"{path}: the attributes ({', '.join(_ATTRS)}) do not match their checksum: the file is corrupt")
+    return sums
+
+
+def _check_tree(f, path: Path, sums: dict) -> None:
+    """Every link hard, every dataset plain and listed in the checksums, nothing listed missing."""
+    import h5py
+
+    found = set()
+
+    def walk(group, prefix):
+        for name in group:
+            full = f"{prefix}{name}"
+            link = group.get(name, getlink=True)
+            if not isinstance(link, h5py.HardLink):
+                kind = "a soft link" if isinstance(link, h5py.SoftLink) else "an external link"
+                raise EventFileError(f"{path}: {full!r} is {kind}; the evedge format holds only its own data")
+            obj = group[name]
+            if isinstance(obj, h5py.Group):
+                walk(obj, full + "/")
+            elif isinstance(obj, h5py.Dataset):
+                if obj.is_virtual or obj.external:
+                    raise EventFileError(f"{path}: dataset {full!r} keeps its data outside the file")
+                found.add(full)
+            else:
+                raise EventFileError(f"{path}: {full!r} is neither a group nor a dataset")
+
+    walk(f, "")
+    listed = set(sums) - {"@attrs"}
+    extra = sorted(found - listed)
+    if extra:
+        raise EventFileError(f"{path}: dataset {extra[0]!r} has no checksum: not written by write_recording")
+    missing = sorted(listed - found)
+    if missing:
+        raise EventFileError(f"{path}: missing dataset {missing[0]!r} (listed in the file's checksums)")
+
+
+def _declared_bytes(ds, path: Path, full: str) -> int:
+    """Bytes ``ds`` declares, after checking that the file stores that much."""
+    nbytes = math.prod(ds.shape) * ds.dtype.itemsize if ds.shape is not None else 0
+    if nbytes == 0:
+        return 0
+    storage = ds.id.get_storage_size()
+    if ds.chunks is None:
+        if storage < nbytes:
+            raise EventFileError(f"{path}: dataset {full!r} declares {nbytes} bytes ({ds.shape}) but stores {storage}")
+        return nbytes
+    expected = math.prod(-(-n // c) for n, c in zip(ds.shape, ds.chunks))
+    stored = ds.id.get_num_chunks()
+    if stored < expected:
+        raise EventFileError(
+            f"{path}: dataset {full!r} declares shape {ds.shape} ({expected} chunks) but stores {stored} chunks")
+    if nbytes > _MAX_EXPANSION * max(storage, 1):
+        raise EventFileError(
+            f"{path}: dataset {full!r} declares {nbytes} bytes but stores only {storage}: more than compression allows")
+    return nbytes
+
+
+def _read(ds, path: Path, full: str, sums: dict, place: list) -> np.ndarray:
+    place[:] = [f"dataset {full!r}"]
+    data = ds[()]
+    if _data_digest(np.asarray(data)) != sums.get(full):
+        raise EventFileError(f"{path}: dataset {full!r} does not match its checksum: the file is corrupt")
+    return np.asarray(data)
 
 
 def _group(f, path: Path, name: str):
@@ -167,7 +337,7 @@ def _sensor(f, path: Path) -> SensorSize:
         raise EventFileError(f"{path}: bad sensor size attributes: {err}") from err
 
 
-def _columns(f, path: Path, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, ...]:
+def _event_datasets(f, path: Path) -> tuple:
     group = _group(f, path, "events")
     n = None
     cols = []
@@ -182,22 +352,35 @@ def _columns(f, path: Path, start: int = 0, stop: int | None = None) -> tuple[np
         if ds.dtype.kind not in kinds:
             raise EventFileError(f"{path}: dataset 'events/{name}' has dtype {ds.dtype}, expected {'bool' if name == 'p' else 'integers'}")
         cols.append(ds)
-    out = tuple(ds[start:stop] for ds in cols)
-    t = out[2]
+    return tuple(cols)
+
+
+def _check_t(path: Path, t: np.ndarray, start: int = 0) -> None:
     if t.dtype == np.uint64 and t.size and int(t.max()) > np.iinfo(np.int64).max:
         # would wrap to negative int64 microseconds
         i = int(np.flatnonzero(t > np.iinfo(np.int64).max)[0])
         raise EventFileError(f"{path}: {locate_index(start + i)}: 'events/t' = {int(t[i])} exceeds int64 microseconds")
-    return out
 
 
-def _stack(f, path: Path, name: str, sensor: SensorSize) -> Frames | None:
+def _stack_datasets(f, path: Path, name: str):
     if name not in f:
         return None
     group = _group(f, path, name)
     t_us, images = (_dataset_in(group, path, part) for part in ("t_us", "images"))
+    if t_us.dtype.kind not in "iu":
+        raise EventFileError(f"{path}: dataset '{name}/t_us' has dtype {t_us.dtype}, expected integer microseconds")
+    wanted = ("b",) if name == "edges" else ("u1", "f4", "f8")
+    if images.dtype.kind + (str(images.dtype.itemsize) if images.dtype.kind != "b" else "") not in wanted:
+        expect = "bool edge maps" if name == "edges" else "uint8 or float32/float64 frames"
+        raise EventFileError(f"{path}: dataset '{name}/images' has dtype {images.dtype}, expected {expect}")
+    return t_us, images
+
+
+def _stack(path: Path, name: str, t_us: np.ndarray, images: np.ndarray, sensor: SensorSize) -> Frames:
+    if t_us.dtype == np.uint64 and t_us.size and int(t_us.max()) > np.iinfo(np.int64).max:
+        raise EventFileError(f"{path}: '{name}/t_us' exceeds int64 microseconds")
     try:
-        stack = Frames(t_us[()], images[()])
+        stack = Frames(t_us, images)
     except ValueError as err:
         raise EventFileError(f"{path}: group {name!r}: {err}") from err
     dec = np.flatnonzero(stack.t_us[1:] < stack.t_us[:-1])
@@ -208,11 +391,32 @@ def _stack(f, path: Path, name: str, sensor: SensorSize) -> Frames | None:
             f"{path}: '{name}/images' are {stack.images.shape[2]}x{stack.images.shape[1]}, the sensor is "
             f"{sensor.width}x{sensor.height}"
         )
+    img = stack.images
+    if img.dtype.kind == "f" and img.size:
+        bad = np.flatnonzero(~np.isfinite(img.ravel()) | (img.ravel() < 0) | (img.ravel() > 1))
+        if bad.size:
+            k, rest = divmod(int(bad[0]), img.shape[1] * img.shape[2])
+            yy, xx = divmod(rest, img.shape[2])
+            raise EventFileError(
+                f"{path}: '{name}/images' frame {k} pixel (x={xx}, y={yy}) is {float(img.ravel()[bad[0]])}, "
+                f"expected a finite intensity in [0, 1]")
     return stack
 
 
+def _check_truth(path: Path, name: str, col: np.ndarray) -> None:
+    if col.dtype.kind not in "biuf":
+        raise EventFileError(f"{path}: dataset 'truth/{name}' has dtype {col.dtype}, expected numbers or booleans")
+    if name == "is_signal" and col.dtype.kind != "b":
+        raise EventFileError(f"{path}: dataset 'truth/is_signal' has dtype {col.dtype}, expected bool")
+    if name == "lifetime_us" and col.size:
+        bad = np.flatnonzero(col <= 0)  # NaN (noise, no estimate) and inf (no motion along the normal) allowed
+        if bad.size:
+            raise EventFileError(f"{path}: {locate_index(int(bad[0]))}: 'truth/lifetime_us' = "
+                                 f"{float(col[bad[0]])}, expected > 0 (or NaN/inf)")
+
+
 def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:
-    """Read an evedge HDF5 file written by :func:`write_recording`.
+    """Read an evedge HDF5 file written by :func:`write_recording`, verifying it.
 
     Parameters
     ----------
@@ -233,18 +437,56 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
     ------
     EventFileError
         Not HDF5, not the evedge format, missing group/dataset (named),
-        inconsistent lengths, coordinates outside the sensor, unsorted timestamps.
+        a link or a virtual dataset, a declared size the file does not store
+        or the machine cannot hold, a checksum mismatch (named), inconsistent
+        lengths, values outside their domain (frames finite in [0, 1], edge
+        maps boolean, increasing frame times, lifetimes > 0), coordinates
+        outside the sensor, unsorted timestamps, any HDF5 read failure.
+
+    Examples
+    --------
+    >>> from evedge.events import Recording, SensorSize, make_events
+    >>> import tempfile, pathlib
+    >>> rec = Recording(make_events([1, 2], [0, 1], [5, 9], [True, False]), SensorSize(4, 3))
+    >>> path = write_recording(pathlib.Path(tempfile.mkdtemp()) / "r.h5", rec)
+    >>> read_hdf5(path).events["t"].tolist()
+    [5, 9]
     """
     path = Path(path)
-    f = _open(path)
-    with f:
+    place: list = []
+    f, sums = _open(path, place)
+    with f, _reading(path, place):
+        place[:] = ["the file structure"]
+        _check_tree(f, path, sums)
         sensor = _sensor(f, path)
         if sensor_size is not None and sensor_size != sensor:
             raise EventFileError(
                 f"{path}: sensor size {sensor_size.width}x{sensor_size.height} was given but the file says "
                 f"{sensor.width}x{sensor.height}"
             )
-        x, y, t, p = _columns(f, path)
+        columns = _event_datasets(f, path)
+        n = columns[0].shape[0]
+        truth_sets = []
+        if "truth" in f:
+            group = _group(f, path, "truth")
+            for name in group:
+                ds = _dataset_in(group, path, name)
+                if ds.ndim == 0:
+                    raise EventFileError(f"{path}: dataset 'truth/{name}' is a scalar, expected one row per event")
+                if ds.shape[0] != n:
+                    raise EventFileError(f"{path}: dataset 'truth/{name}' has {ds.shape[0]} rows, there are {n} events")
+                truth_sets.append((name, ds))
+        stacks = {name: _stack_datasets(f, path, name) for name in ("frames", "edges")}
+        everything = [(ds.name.strip("/"), ds) for ds in columns] + [(f"truth/{k}", ds) for k, ds in truth_sets]
+        everything += [(ds.name.strip("/"), ds) for pair in stacks.values() if pair for ds in pair]
+        declared = sum(_declared_bytes(ds, path, full) for full, ds in everything)
+        # the columns, the event array built from them and the truth table built from its columns
+        short = memory_shortfall(2 * declared + 16 * n, f"reading {n} events with their truth and frames")
+        if short:
+            raise EventFileError(f"{path}: {short}")
+        x, y, t, p = (_read(ds, path, full, sums, place) for full, ds in everything[:4])
+        _check_t(path, t)
+        place[:] = ["attribute 'metadata'"]
         try:
             metadata = json.loads(f.attrs.get("metadata", "{}"))
         except (TypeError, ValueError) as err:
@@ -252,21 +494,22 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
         if not isinstance(metadata, dict):
             raise EventFileError(f"{path}: attribute 'metadata' must hold a JSON object, got {type(metadata).__name__}")
         truth = None
-        if "truth" in f:
-            group = _group(f, path, "truth")
+        if truth_sets:
             fields = []
-            for name in group:
-                ds = _dataset_in(group, path, name)
-                if ds.ndim == 0:
-                    raise EventFileError(f"{path}: dataset 'truth/{name}' is a scalar, expected one row per event")
-                if ds.shape[:1] != x.shape:
-                    raise EventFileError(f"{path}: dataset 'truth/{name}' has {ds.shape[0]} rows, there are {x.size} events")
-                fields.append((name, ds[()]))
-            truth = np.empty(x.size, dtype=[(n, c.dtype, c.shape[1:]) for n, c in fields])
+            for name, ds in truth_sets:
+                col = _read(ds, path, f"truth/{name}", sums, place)
+                _check_truth(path, name, col)
+                fields.append((name, col))
+            truth = np.empty(n, dtype=[(k, c.dtype, c.shape[1:]) for k, c in fields])
             for name, col in fields:
                 truth[name] = col
-        frames = _stack(f, path, "frames", sensor)
-        edges = _stack(f, path, "edges", sensor)
+        frames = edges = None
+        for name, pair in stacks.items():
+            if pair is not None:
+                t_us, images = (_read(ds, path, f"{name}/{part}", sums, place)
+                                for ds, part in zip(pair, ("t_us", "images")))
+                stack = _stack(path, name, t_us, images, sensor)
+                frames, edges = (stack, edges) if name == "frames" else (frames, stack)
     order = None
     if sort:
         order = np.argsort(t, kind="stable")
@@ -297,19 +540,47 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
     Raises
     ------
     EventFileError
-        As :func:`read_hdf5`. Each chunk is checked against the sensor and
-        for time order (also across chunk boundaries); no ``sort`` option.
+        As :func:`read_hdf5`. The event columns' checksums are verified in a
+        first streaming pass (memory bounded by ``chunk_size``), so no chunk
+        of a corrupt file is ever yielded. Each chunk is checked against the
+        sensor and for time order (also across chunk boundaries); no ``sort``
+        option.
+
+    Examples
+    --------
+    >>> from evedge.events import Recording, SensorSize, make_events
+    >>> import tempfile, pathlib
+    >>> rec = Recording(make_events([1, 2, 3], [0, 1, 2], [5, 9, 9], [1, 0, 1]), SensorSize(4, 3))
+    >>> path = write_recording(pathlib.Path(tempfile.mkdtemp()) / "r.h5", rec)
+    >>> [c.size for c in iter_hdf5_events(path, chunk_size=2)]
+    [2, 1]
     """
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
         raise ValueError(f"iter_hdf5_events: chunk_size must be a positive integer, got {chunk_size!r}")
     path = Path(path)
-    f = _open(path)
+    place: list = []
+    f, sums = _open(path, place)
     with f:
-        sensor = _sensor(f, path)
-        n = _dataset_in(_group(f, path, "events"), path, "t").shape[0]
+        with _reading(path, place):
+            place[:] = ["the file structure"]
+            _check_tree(f, path, sums)
+            sensor = _sensor(f, path)
+            columns = _event_datasets(f, path)
+            n = columns[0].shape[0]
+            for ds in columns:
+                full = ds.name.strip("/")
+                _declared_bytes(ds, path, full)
+                place[:] = [f"dataset {full!r}"]
+                h = _new_hash(ds.dtype, ds.shape)
+                for start in range(0, n, max(chunk_size, _HASH_BLOCK)):
+                    h.update(np.ascontiguousarray(ds[start:start + max(chunk_size, _HASH_BLOCK)]).tobytes())
+                if h.hexdigest() != sums.get(full):
+                    raise EventFileError(f"{path}: dataset {full!r} does not match its checksum: the file is corrupt")
         last_t = None
         for start in range(0, n, chunk_size):
-            x, y, t, p = _columns(f, path, start, start + chunk_size)
+            with _reading(path, place):
+                x, y, t, p = (ds[start:start + chunk_size] for ds in columns)
+            _check_t(path, t, start)
             if last_t is not None and t.size and t[0] < last_t:
                 raise EventFileError(f"{path}: event index {start}: timestamps are not sorted (t={int(t[0])} us after {last_t} us)")
 
@@ -319,4 +590,3 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
             events, _ = finish_events(path, x, y, t, p, sensor, "file metadata", locate, False)
             last_t = int(t[-1]) if t.size else last_t
             yield events
-
