@@ -116,6 +116,9 @@ class ConverterParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"ConverterParams.{name} must be > 0, got {getattr(self, name)}")
+        if self.min_step_s < 1e-9:
+            # a smaller step vanishes against t (t + step == t): the simulation would never progress
+            raise ValueError(f"ConverterParams.min_step_s must be >= 1e-9, got {self.min_step_s}")
         for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us"):
             if getattr(self, name) < 0:
                 raise ValueError(f"ConverterParams.{name} must be >= 0, got {getattr(self, name)}")
@@ -123,6 +126,7 @@ class ConverterParams:
         for name, hi, why in (
             ("lambda_", 1.0, "a step may not cross more than one threshold"),
             ("noise_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("min_rate_hz", 1e6, "a step need not be shorter than a microsecond"),
             ("jitter_us", 1e12, "jittered times must stay inside int64 microseconds"),
         ):
             if getattr(self, name) > hi:
