@@ -107,6 +107,8 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
     (:func:`evedge.io._isolated.run_isolated`): a panic, an abort or a
     gigabyte reservation on a corrupt file is an :class:`EventFileError`.
     """
+    import aedat  # noqa: F401 - the compiled decoder, imported once here rather than in each child
+
     path = Path(path)
     if path.is_dir():
         raise EventFileError(f"{path}: is a folder, not an AEDAT4 file")

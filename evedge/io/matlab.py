@@ -66,6 +66,8 @@ def read_mat(
         unsorted timestamps (unless ``sort``). Messages name the file, the
         variable and the row (0-based).
     """
+    import scipy.io  # noqa: F401 - heavy; imported here once, not in every child process
+
     path = Path(path)
     if path.is_dir():
         raise EventFileError(f"{path}: is a folder, not a MATLAB .mat file")
