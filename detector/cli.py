@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import tempfile
 from pathlib import Path
 
 import click
@@ -16,8 +15,25 @@ from evedge._cli_options import sensor_option
 _CHUNK = 100_000
 #: Most memory the edge frames (one byte per pixel) may take before --fps is refused as a mistake.
 _MAX_FRAME_BYTES = 4 * 2**30
-#: Names of the PNG frames this command writes (and may replace on a rerun).
+#: The largest float below 2**63: frame times at or above it do not fit int64 microseconds.
+_LAST_FLOAT_US = float(np.nextafter(2.0**63, 0))
+#: Memory of the lifetime methods' per-pixel state (buffer, SAE, estimator, edge image), bytes per pixel,
+#: and of their per-event outputs (lifetimes, flow, validity, buffer links), bytes per event.
+_STATE_BYTES_PER_PIXEL = {"intra": 160, "mueggler": 160, "time": 16, "count": 16}
+_BYTES_PER_EVENT = 96
+#: What OUT may hold for detect to replace it (with --overwrite).
+_OUTPUT_NAMES = ("detection.h5", "edges")
 _PNG_NAME = re.compile(r"edges_\d{6}_-?\d+us\.png")
+
+
+def _check_replaceable(out: Path) -> None:
+    """An OUT to replace must hold only what detect writes: no links, no other files."""
+    edges = out / "edges"
+    if edges.is_dir() and not edges.is_symlink():
+        for entry in edges.iterdir():
+            if entry.is_symlink() or not _PNG_NAME.fullmatch(entry.name):
+                raise click.ClickException(f"{entry} was not written by evedge detect: {out} is not replaced; "
+                                           f"move it away or choose another output folder")
 
 
 def _times(ctx, param, value):
@@ -30,8 +46,9 @@ def _times(ctx, param, value):
                                  ctx=ctx, param=param) from None
     if times.size == 0:
         raise click.BadParameter("no instant given", ctx=ctx, param=param)
-    if np.any(np.diff(times) < 0):
-        i = int(np.flatnonzero(np.diff(times) < 0)[0])
+    decrease = times[1:] < times[:-1]  # not np.diff: -5e18, 5e18 would wrap int64
+    if np.any(decrease):
+        i = int(np.flatnonzero(decrease)[0])
         raise click.BadParameter(f"instants must be non-decreasing, got {times[i]} then {times[i + 1]}",
                                  ctx=ctx, param=param)
     return times
@@ -51,24 +68,9 @@ def _frame_times(events, fps, times):
         return np.empty(0, np.int64)
     step = 1e6 / fps
     t0, t1 = int(events["t"][0]), int(events["t"][-1])
-    return np.rint(np.arange(t0 + step, t1 + step / 2, step)).astype(np.int64)
-
-
-def _atomic(path: Path, write) -> None:
-    """Write through a temp file in the target's directory, then rename over it."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    # mkstemp makes the file private (0600); give it the mode a plain open() would
-    mask = os.umask(0o022)
-    os.umask(mask)
-    os.fchmod(fd, 0o666 & ~mask)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    ts = np.rint(np.arange(t0 + step, t1 + step / 2, step))
+    # near the int64 limit a float time rounds to 2**63, which would wrap to -2**63 us
+    return ts[ts < _LAST_FLOAT_US].astype(np.int64)
 
 
 def _lifetimes_intra(events, sensor, use_buffer, seed, quiet):
@@ -95,7 +97,7 @@ def _lifetimes_intra(events, sensor, use_buffer, seed, quiet):
 def _write_h5(path: Path, lifetimes, kept, times, frames, meta) -> None:
     import h5py
 
-    def write(tmp):
+    def write(tmp):  # into the staged output folder: swapped in with the frames, or removed
         with h5py.File(tmp, "w") as f:
             for key, value in meta.items():
                 f.attrs[key] = value
@@ -108,23 +110,30 @@ def _write_h5(path: Path, lifetimes, kept, times, frames, meta) -> None:
             e.create_dataset("t_us", data=times)
             e.create_dataset("images", data=frames, compression="gzip")
 
-    _atomic(path, write)
+    write(path)
 
 
 def _write_pngs(folder: Path, times, frames, quiet) -> None:
+    """Write the frames into ``folder`` (a fresh folder inside the staged output)."""
     from PIL import Image
     from tqdm import tqdm
 
-    folder.mkdir(parents=True, exist_ok=True)
-    written = set()
+    folder.mkdir()
     for i, (t, img) in enumerate(tqdm(list(zip(times, frames)), desc="PNG", unit="frame", disable=quiet)):
-        target = folder / f"edges_{i:06d}_{int(t)}us.png"
-        _atomic(target, lambda tmp, img=img: Image.fromarray((img * 255).astype(np.uint8)).save(tmp, format="PNG"))
-        written.add(target.name)
-    # A rerun into the same folder must not leave frames of an earlier run beside the new ones.
-    for old in folder.iterdir():
-        if _PNG_NAME.fullmatch(old.name) and old.name not in written:
-            old.unlink()
+        Image.fromarray((img * 255).astype(np.uint8)).save(folder / f"edges_{i:06d}_{int(t)}us.png", format="PNG")
+
+
+def _check_memory(n_events: int, size, n_frames: int, method: str) -> None:
+    """Refuse a run whose state, per-event outputs and frames cannot fit, before any work."""
+    from evedge._resources import memory_shortfall
+
+    pixels = size.width * size.height
+    needed = pixels * _STATE_BYTES_PER_PIXEL[method] + n_events * _BYTES_PER_EVENT + 2 * n_frames * pixels
+    short = memory_shortfall(needed, f"--method {method} on {n_events} events of a {size.width}x{size.height} "
+                                     f"sensor with {n_frames} edge frames")
+    if short:
+        raise click.ClickException(f"{short}; a smaller --sensor, fewer frames (--fps, --times) or a shorter "
+                                   f"recording would fit")
 
 
 @click.command()
@@ -146,17 +155,29 @@ def _write_pngs(folder: Path, times, frames, quiet) -> None:
 @click.option("--buffer/--no-buffer", "use_buffer", default=None,
               help="Event-buffer noise filter (default: on for intra, off for mueggler).")
 @click.option("--clear-behind", is_flag=True, help="Clear the pixel behind each event (Mueggler's display).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="RANSAC seed (intra).")
+@click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=0, show_default=True,
+              help="RANSAC seed (intra).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing OUT (a previous detect output).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, sort, use_buffer, clear_behind, seed,
-           quiet):
+           overwrite, quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads).
 
     Writes OUT/detection.h5 (per-event lifetime_us, vx_px_s, vy_px_s, valid and
     kept for lifetime methods; edge frames with their times) and one PNG per
-    edge frame in OUT/edges/.
+    edge frame in OUT/edges/. Both are written into a temporary folder beside
+    OUT and swapped in together at the end; an existing OUT is replaced only
+    with --overwrite.
     """
+    from evedge._output import OutputExistsError, check_output
     from evedge.io import read_events
+
+    try:
+        replacing = check_output(out, overwrite=overwrite)
+    except OutputExistsError as err:
+        raise click.ClickException(str(err)) from None
+    if replacing:
+        _check_replaceable(out)
 
     try:
         rec = read_events(events_file, sensor_size=sensor, sort=sort)
@@ -171,6 +192,7 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, so
                 f"{n_frames * size.width * size.height / 2**30:.1f} GiB; lower --fps or give --times",
                 param_hint="'--fps'")
     frame_t = _frame_times(events, fps, times)
+    _check_memory(events.size, size, frame_t.size, method)
     if frame_t.size == 0 and events.size:
         span = int(events["t"][-1]) - int(events["t"][0])
         click.echo(f"Warning: no edge frame: the events span {span} us, less than one frame period "
@@ -196,12 +218,18 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, so
 
         frames = accumulate_count(events, size, frame_t, n_events)
     meta = {"source": str(events_file), "method": method, "sensor_width": size.width, "sensor_height": size.height}
+    from evedge._output import staged_folder
+
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        _write_h5(out / "detection.h5", lifetimes, kept, frame_t, frames, meta)
-        _write_pngs(out / "edges", frame_t, frames, quiet)
+        with staged_folder(out, allowed=_OUTPUT_NAMES) as stage:
+            _write_h5(stage / "detection.h5", lifetimes, kept, frame_t, frames, meta)
+            _write_pngs(stage / "edges", frame_t, frames, quiet)
+    except OutputExistsError as err:
+        raise click.ClickException(str(err)) from None
     except OSError as err:
-        raise click.ClickException(f"cannot write the output into {out}: {err}") from None
+        raise click.ClickException(f"cannot write the output {out} (nothing of this run was kept): {err}") from None
+    if replacing:
+        click.echo(f"replaced the earlier output in {out}", err=True)
     n_valid = int(lifetimes["valid"].sum()) if lifetimes is not None else None
     msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"
     if n_valid is not None:
