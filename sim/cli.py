@@ -19,12 +19,19 @@ import click
 @click.option("--format", "fmt", type=click.Choice(["h5", "ecd"]), default="h5", show_default=True,
               help="h5: events, truth, frames, edges, scene and versions (evedge HDF5); "
                    "ecd: Event Camera Dataset text folder (events and frames only).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing OUTPUT.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: str, quiet: bool) -> None:
-    """Simulate the scene file SCENE (TOML, see sim/SCENES.md) and write it to OUTPUT."""
+def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: str, overwrite: bool,
+             quiet: bool) -> None:
+    """Simulate the scene file SCENE (TOML, see sim/SCENES.md) and write it to OUTPUT.
+
+    The output is written whole (a temporary file or folder, then renamed); an
+    existing OUTPUT is replaced only with --overwrite.
+    """
     from .scene import SceneError, load_scene
     from .simulate import simulate as run
 
+    from evedge._output import OutputExistsError, check_output
     from evedge.io import write_ecd, write_recording
 
     # refuse an unwritable output before a simulation that may take minutes
@@ -38,11 +45,17 @@ def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: st
         raise click.BadParameter(f"{output} is an existing file; --format ecd writes a folder",
                                  param_hint="'-o' / '--output'")
     try:
+        replacing = check_output(output, overwrite=overwrite)
+    except OutputExistsError as err:
+        raise click.ClickException(str(err)) from None
+    try:
         parsed = load_scene(scene)
         rec = run(parsed, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=not quiet)
         path = write_recording(output, rec) if fmt == "h5" else write_ecd(output, rec)
     except (SceneError, ValueError, TypeError, OSError, MemoryError) as err:
         raise click.ClickException(str(err) or type(err).__name__) from None
+    if replacing:
+        click.echo(f"replaced the earlier output {output}", err=True)
     md = rec.metadata
     click.echo(f"{path}: {rec.events.shape[0]} events ({md['n_signal']} signal, {md['n_noise']} noise), "
                f"{md['duration_s']} s, {rec.sensor_size.width}x{rec.sensor_size.height}, "
