@@ -11,10 +11,26 @@ import os
 import click
 
 
+def _overwrite(ctx, param, value):
+    """Eager, so that the output check in ``_out_dir`` sees it whatever the order on the command line."""
+    ctx.meta["evedge_overwrite"] = bool(value)
+    return value
+
+
 def _out_dir(ctx, param, value):
-    """Create the output directory up front: an unusable path is a usage error, not a traceback after the run."""
+    """Create the output directory up front: an unusable path is a usage error, not a traceback after the run.
+
+    An existing, non-empty output is refused unless --overwrite is given (then announced).
+    """
     if value is None:
         return None
+    from evedge._output import OutputExistsError, check_output
+
+    try:
+        if check_output(value, overwrite=ctx.meta.get("evedge_overwrite", False)):
+            click.echo(f"replacing the earlier output in {value} (file by file)", err=True)
+    except OutputExistsError as err:
+        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
     try:
         value.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -39,6 +55,8 @@ def _scene(ctx, param, value):
 _OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
                     callback=_out_dir, help="Output directory.")
 _QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
+_OVERWRITE = click.option("--overwrite", is_flag=True, is_eager=True, expose_value=False, callback=_overwrite,
+                          help="Replace an existing, non-empty output directory.")
 _NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
 _SEED = click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of simulations and RANSAC study.")
 _DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor", "lifetime_only"]), multiple=True,
@@ -46,7 +64,17 @@ _DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor
                              "clear the pixel behind each event (primary); lifetime_only: nothing cleared.")
 
 
-@click.group()
+class _Group(click.Group):
+    """A failed write (a full disk, a vanished folder) is one error line, not a traceback."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except OSError as err:
+            raise click.ClickException(f"cannot write the output: {err}") from None
+
+
+@click.group(cls=_Group)
 def bench() -> None:
     """The paper's experiments: metrics, figures, tables and an HTML report."""
 
@@ -64,6 +92,7 @@ def _summary(results: dict, t0: float) -> None:
 
 @bench.command()
 @_OUT
+@_OVERWRITE
 @_QUICK
 @_NOPROG
 @_SEED
@@ -81,6 +110,7 @@ def paper(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
 
 @bench.command()
 @_OUT
+@_OVERWRITE
 @_QUICK
 @_NOPROG
 @_SEED
@@ -99,6 +129,7 @@ def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: in
 
 @bench.command()
 @_OUT
+@_OVERWRITE
 @_QUICK
 @_NOPROG
 @_SEED
@@ -112,6 +143,7 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
 
 @bench.command()
 @_OUT
+@_OVERWRITE
 @_QUICK
 @_NOPROG
 @_SEED
@@ -130,6 +162,7 @@ def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str,
 
 @bench.command()
 @_OUT
+@_OVERWRITE
 @_QUICK
 @_NOPROG
 def qualitative(out: Path, quick: bool, no_progress: bool) -> None:
@@ -142,6 +175,7 @@ def qualitative(out: Path, quick: bool, no_progress: bool) -> None:
 
 @bench.command()
 @_OUT
+@_OVERWRITE
 @_QUICK
 @_NOPROG
 @click.option("--path", type=click.Path(exists=True, path_type=Path), default=None,
@@ -167,6 +201,7 @@ def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays:
 @click.command()
 @click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("demo_out"),
               show_default=True, callback=_out_dir, help="Output directory.")
+@_OVERWRITE
 @_NOPROG
 @_SEED
 def demo(out: Path, no_progress: bool, seed: int) -> None:
@@ -175,7 +210,10 @@ def demo(out: Path, no_progress: bool, seed: int) -> None:
 
     t0 = time.perf_counter()
     click.echo(f"evedge demo: running the paper's experiments (reduced sizes) into {out}/")
-    results = run_paper(out, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
+    try:
+        results = run_paper(out, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
+    except OSError as err:
+        raise click.ClickException(f"cannot write the output: {err}") from None
     _summary(results, t0)
     if results.get("errors"):
         sys.exit(1)
