@@ -95,22 +95,21 @@ def _lifetimes_intra(events, sensor, use_buffer, seed, quiet):
 
 
 def _write_h5(path: Path, lifetimes, kept, times, frames, meta) -> None:
-    import h5py
+    from evedge.io._atomic import write_hdf5_atomic
 
-    def write(tmp):  # into the staged output folder: swapped in with the frames, or removed
-        with h5py.File(tmp, "w") as f:
-            for key, value in meta.items():
-                f.attrs[key] = value
-            if lifetimes is not None:
-                g = f.create_group("lifetimes")
-                for name in lifetimes.dtype.names:
-                    g.create_dataset(name, data=lifetimes[name], compression="gzip")
-                g.create_dataset("kept", data=kept, compression="gzip")
-            e = f.create_group("edges")
-            e.create_dataset("t_us", data=times)
-            e.create_dataset("images", data=frames, compression="gzip")
+    def fill(f):  # built in memory: HDF5 can crash the process when the disk fills during its own writes
+        for key, value in meta.items():
+            f.attrs[key] = value
+        if lifetimes is not None:
+            g = f.create_group("lifetimes")
+            for name in lifetimes.dtype.names:
+                g.create_dataset(name, data=lifetimes[name], compression="gzip")
+            g.create_dataset("kept", data=kept, compression="gzip")
+        e = f.create_group("edges")
+        e.create_dataset("t_us", data=times)
+        e.create_dataset("images", data=frames, compression="gzip")
 
-    write(path)
+    write_hdf5_atomic(path, fill)
 
 
 def _write_pngs(folder: Path, times, frames, quiet) -> None:

@@ -9,6 +9,8 @@ Every command that writes an output (``simulate``, ``detect``, ``bench``,
   swapped in at the end with one atomic ``renameat2(RENAME_EXCHANGE)`` (a
   plain rename when there was none), so a reader sees the old output or the
   new one, never a mix, and a killed run leaves the earlier output intact.
+- Temporary files and folders carry the writer's process id; a later run
+  removes those whose writer no longer runs (a killed run's leftovers).
 - Nothing is written or deleted through a link: an output that is a symbolic
   link, or a folder holding links, is refused; the replaced folder is removed
   without following links.
@@ -27,7 +29,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from .io._atomic import current_umask
+from .io._atomic import current_umask, remove_stale_temps, temp_prefix
 
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
@@ -126,7 +128,8 @@ def staged_folder(target: Path, *, allowed: tuple[str, ...] | None = None) -> It
                 what = "a symbolic link" if entry.is_symlink() else "not written by this command"
                 raise OutputExistsError(f"{entry} is {what}: {target} is not replaced; choose another output folder")
     target.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp"))
+    remove_stale_temps(target)  # what a killed run left
+    stage = Path(tempfile.mkdtemp(dir=target.parent, prefix=temp_prefix(target), suffix=".tmp"))
     os.chmod(stage, 0o777 & ~current_umask())
     try:
         yield stage
@@ -134,7 +137,7 @@ def staged_folder(target: Path, *, allowed: tuple[str, ...] | None = None) -> It
             if _exchange(stage, target):
                 _remove_tree(stage)  # now holds the old output
                 return
-            old = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old.", suffix=".tmp"))
+            old = Path(tempfile.mkdtemp(dir=target.parent, prefix=temp_prefix(target) + "old.", suffix=".tmp"))
             os.replace(target, old / "old")
             os.replace(stage, target)
             _remove_tree(old)

@@ -36,7 +36,7 @@ import numpy as np
 
 from .._resources import memory_shortfall
 from ..events import Frames, Recording, SensorSize
-from ._atomic import atomic_path, check_output_file
+from ._atomic import check_output_file, write_hdf5_atomic
 from ._checks import EventFileError, finish_events, locate_index
 
 FORMAT_NAME = "evedge"
@@ -81,10 +81,15 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
         ``metadata`` is not JSON-serialisable.
     OSError
         The folder of ``path`` does not exist (``FileNotFoundError``) or
-        ``path`` is a folder (``IsADirectoryError``); nothing is written.
-    """
-    import h5py
+        ``path`` is a folder (``IsADirectoryError``), or the disk is full;
+        nothing is written.
 
+    Notes
+    -----
+    The file is built in memory and then written through a temp file
+    (:func:`evedge.io._atomic.write_hdf5_atomic`): HDF5 can crash the process
+    when a disk fills during its own writes.
+    """
     if not isinstance(recording, Recording):
         raise TypeError(f"write_recording: expected a Recording, got {type(recording).__name__}")
     try:
@@ -93,32 +98,33 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
         raise ValueError(f"write_recording: Recording.metadata is not JSON-serialisable: {err}") from err
     path = Path(path)
     check_output_file(path, "write_recording")
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs["format"] = FORMAT_NAME
-            f.attrs["format_version"] = np.int64(FORMAT_VERSION)
-            f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
-            f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
-            f.attrs["metadata"] = metadata
-            ev = recording.events
-            group = f.create_group("events", track_order=True)
-            chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
-            for name in ("x", "y", "t", "p"):
-                _dataset(group, name, np.ascontiguousarray(ev[name]), chunk)
-            if recording.truth is not None:
-                truth = recording.truth
-                if truth.dtype.names is None:
-                    raise TypeError("write_recording: Recording.truth must be a structured array")
-                group = f.create_group("truth", track_order=True)
-                for name in truth.dtype.names:
-                    col = np.ascontiguousarray(truth[name])
-                    _dataset(group, name, col, (max(1, min(truth.size, _EVENT_CHUNK)),) + col.shape[1:])
-            if recording.frames is not None:
-                _write_stack(f, "frames", recording.frames)
-            if recording.edges is not None:
-                _write_stack(f, "edges", recording.edges)
-            seal(f)
-    return path
+
+    def fill(f):
+        f.attrs["format"] = FORMAT_NAME
+        f.attrs["format_version"] = np.int64(FORMAT_VERSION)
+        f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
+        f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
+        f.attrs["metadata"] = metadata
+        ev = recording.events
+        group = f.create_group("events", track_order=True)
+        chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
+        for name in ("x", "y", "t", "p"):
+            _dataset(group, name, np.ascontiguousarray(ev[name]), chunk)
+        if recording.truth is not None:
+            truth = recording.truth
+            if truth.dtype.names is None:
+                raise TypeError("write_recording: Recording.truth must be a structured array")
+            group = f.create_group("truth", track_order=True)
+            for name in truth.dtype.names:
+                col = np.ascontiguousarray(truth[name])
+                _dataset(group, name, col, (max(1, min(truth.size, _EVENT_CHUNK)),) + col.shape[1:])
+        if recording.frames is not None:
+            _write_stack(f, "frames", recording.frames)
+        if recording.edges is not None:
+            _write_stack(f, "edges", recording.edges)
+        seal(f)
+
+    return write_hdf5_atomic(path, fill)
 
 
 #: gzip cannot expand data more than about 1032 times; a chunked, compressed dataset
