@@ -43,7 +43,7 @@ import numpy as np
 
 from ._gl import ZFAR_M, ZNEAR_M, _delete_offscreen, _import_pyrender, _single_sample_renderer_class, opencv_to_gl_pose
 from ._motion_field import motion_field
-from ._scanline import _accumulate_pieces
+from ._scanline import _accumulate_pieces, _prefix_rows
 from ._visibility import _cast_rays_kernel, _point_depth_kernel, _visible_pieces_kernel
 from .boxes import FACE_ORDER, Box3D, box_edges, box_faces
 from .trajectory import CameraTrajectory, KeyframeTrajectory, _finite, _Trajectory, rotation_from_rpy
@@ -284,11 +284,13 @@ class MeshRenderer:
     def _points(self, x, y, t_s):
         """Face seen (N,) int64 and z-depth (N,) (inf: background) at normalised points ``(x, y)``.
 
-        ``t_s`` is one time or one per point (N,).
+        ``t_s`` is one time, one per point (N,), or the poses ``(rotations, centres)`` per point.
         """
         x = np.ascontiguousarray(x, dtype=np.float64)
         y = np.ascontiguousarray(y, dtype=np.float64)
-        if np.ndim(t_s) == 0:
+        if isinstance(t_s, tuple):  # (rotations, centres) already evaluated, one per point
+            rot, centre = t_s
+        elif np.ndim(t_s) == 0:
             rot = self.trajectory.rotation(t_s)[None]
             centre = self.trajectory.position(t_s)[None]
         else:
@@ -320,7 +322,7 @@ class MeshRenderer:
         """
         if method == "exact":
             self._check_open()
-            return np.clip(self._exact_intensity(_finite(t_s, "t_s")), 0.0, 1.0)
+            return self._exact_intensity(_finite(t_s, "t_s"))
         if method != "raster":
             raise ValueError(f"method must be 'exact' or 'raster', got {method!r}")
         s = self.supersample
@@ -381,8 +383,8 @@ class MeshRenderer:
         if t.size and not np.all(np.isfinite(t)):
             raise ValueError("flow_at: t_s must be finite")
         xn, yn = (x - self.cx) / self.fx, (y - self.cy) / self.fy
-        _, depth = self._points(xn, yn, t)
-        rot, _, vel, w = self.trajectory.kinematics(t)
+        rot, centre, vel, w = self.trajectory.kinematics(t)
+        _, depth = self._points(xn, yn, (rot, centre))
         v_cam = np.einsum("nji,nj->ni", rot, vel)
         return motion_field(xn, yn, 1.0 / depth, v_cam, w, self.fx, self.fy)
 
@@ -508,7 +510,9 @@ class MeshRenderer:
         _accumulate_pieces(acc, width, height, np.ascontiguousarray(su0), np.ascontiguousarray(sv0),
                            np.ascontiguousarray(su1), np.ascontiguousarray(sv1),
                            np.ascontiguousarray(jump[sloped], dtype=np.float64))
-        return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :width]
+        out = np.empty((height, width))
+        _prefix_rows(acc, self._left_border(t_s, p, q), width, out)  # clipped to [0, 1]
+        return out
 
     def _left_border(self, t_s: float, p: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Mean intensity along the left image border ``u = -0.5`` over each row (H,)."""
