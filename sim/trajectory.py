@@ -24,10 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CameraTrajectory", "KeyframeTrajectory", "GRAVITY_M_S2", "imu", "rotation_from_rpy"]
+__all__ = ["CameraTrajectory", "KeyframeTrajectory", "GRAVITY_M_S2", "IMU_DTYPE", "imu", "imu_table",
+           "rotation_from_rpy"]
 
 #: Default gravity in the world frame (OpenCV axes, y down), m/s^2 (standard gravity).
 GRAVITY_M_S2 = (0.0, 9.80665, 0.0)
+
+#: IMU truth rows of a recording: time, gyroscope (body rad/s), accelerometer (specific force, camera frame).
+IMU_DTYPE = np.dtype([("t_us", np.int64), ("wx_rad_s", np.float64), ("wy_rad_s", np.float64),
+                      ("wz_rad_s", np.float64), ("ax_m_s2", np.float64), ("ay_m_s2", np.float64),
+                      ("az_m_s2", np.float64)])
 
 
 def _vector(value, name: str, length: int = 3) -> tuple[float, ...]:
@@ -345,3 +351,29 @@ def imu(trajectory, t_s, gravity_m_s2=GRAVITY_M_S2) -> tuple[np.ndarray, np.ndar
         gyro[k] = trajectory.angular_velocity(t)
         acc[k] = trajectory.rotation(t).T @ (trajectory.linear_acceleration(t) - g)
     return gyro, acc
+
+
+def imu_table(trajectory, rate_hz: float, duration_s: float, gravity_m_s2=GRAVITY_M_S2) -> np.ndarray:
+    """IMU truth at ``k / rate_hz`` for ``k = 0, 1, ...`` up to ``duration_s``, as :data:`IMU_DTYPE` rows.
+
+    Times are rounded to whole microseconds first and the readings taken at those times.
+
+    Examples
+    --------
+    >>> tr = CameraTrajectory((0, 0, 0), (0, 0, 0), (0, 0, 0), (0, 0.5, 0))
+    >>> rows = imu_table(tr, 100.0, 0.05)
+    >>> rows["t_us"].tolist(), float(rows["wy_rad_s"][3])
+    ([0, 10000, 20000, 30000, 40000, 50000], 0.5)
+    """
+    rate_hz, duration_s = _finite(rate_hz, "rate_hz"), _finite(duration_s, "duration_s")
+    if rate_hz <= 0 or duration_s < 0:
+        raise ValueError(f"imu_table: rate_hz must be > 0 and duration_s >= 0, got {rate_hz}, {duration_s}")
+    n = int(math.floor(duration_s * rate_hz + 1e-9)) + 1
+    t_us = np.rint(np.arange(n) / rate_hz * 1e6).astype(np.int64)
+    gyro, acc = imu(trajectory, t_us * 1e-6, gravity_m_s2)
+    out = np.empty(n, dtype=IMU_DTYPE)
+    out["t_us"] = t_us
+    for k, axis in enumerate("xyz"):
+        out[f"w{axis}_rad_s"] = gyro[:, k]
+        out[f"a{axis}_m_s2"] = acc[:, k]
+    return out
