@@ -92,3 +92,37 @@ def _delete_offscreen(renderer) -> None:
         renderer._platform = None
 
 
+
+
+def _grey_renderer_class(pyrender, GL, samples: int):
+    """A pyrender Renderer that draws with ``samples`` multisamples (0: none) and reads back only
+    the red channel (uint8, rows top-down), without the depth buffer.
+
+    pyrender reads colour and depth and linearises the depth in Python for every render; the
+    grey renderers need one 8-bit channel, so this halves the work of a render at 240x180.
+    """
+
+    class _GreyRenderer(pyrender.Renderer):
+        _respecified = None
+
+        def _configure_main_framebuffer(self):
+            super()._configure_main_framebuffer()
+            if samples != 4 and self._main_cb_ms is not self._respecified:
+                w, h = self.viewport_width, self.viewport_height
+                GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb_ms)
+                GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, GL.GL_RGBA, w, h)
+                GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db_ms)
+                GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, GL.GL_DEPTH_COMPONENT24, w, h)
+                self._respecified = self._main_cb_ms
+
+        def _read_main_framebuffer(self, scene, flags):
+            width, height = self._main_fb_dims[0], self._main_fb_dims[1]
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+            GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+            buf = GL.glReadPixels(0, 0, width, height, GL.GL_RED, GL.GL_UNSIGNED_BYTE)
+            return np.frombuffer(buf, dtype=np.uint8).reshape(height, width)[::-1], None
+
+    return _GreyRenderer

@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from .trajectory import _finite
+
+#: The OpenGL near plane (m): no visible point is nearer (see :mod:`evedge.sim._gl`).
+_ZNEAR_M = 0.05
 
 
 def motion_field(x, y, inv_z, v_cam, w, fx: float, fy: float) -> tuple[np.ndarray, np.ndarray]:
@@ -44,3 +51,41 @@ def motion_field(x, y, inv_z, v_cam, w, fx: float, fy: float) -> tuple[np.ndarra
     ay = -v_cam[..., 1] * inv_z - (wz * x - wx)
     az = -v_cam[..., 2] * inv_z - (wx * y - wy * x)
     return fx * (ax - x * az), fy * (ay - y * az)
+
+
+def image_speed_bound(camera, t0_s: float, t1_s: float, lo: np.ndarray, hi: np.ndarray) -> float:
+    """Upper bound of the image speed (px/s) over all pixels and ``t`` in ``[t0_s, t1_s]``.
+
+    ``camera`` has ``width, height, fx, fy, cx, cy`` and a ``trajectory``; the scene lies inside
+    the world boxes ``[lo, hi]`` (B, 3) (boxes, or meshes' bounding boxes).
+
+    Notes
+    -----
+    With ``q = (x, y, 1)`` and ``r = max |q|`` over the image corners, the translational part of
+    the field is ``f M V / Z`` with ``||M|| = |q|``, so it is at most ``max(fx, fy) |V| r / Z``;
+    any visible point has ``Z >= D / r`` where ``D`` is the Euclidean distance from the camera
+    centre to the nearest box (bounded over the interval by its value at the midpoint minus
+    ``|v| (t1 - t0) / 2``; never below the 5 cm near plane). The rotational part is bounded term
+    by term with ``|x| <= xm``, ``|y| <= ym``: ``|vx| <= fx (|wy| (1 + xm^2) + |wz| ym + |wx| xm ym)``
+    and ``|vy| <= fy (|wx| (1 + ym^2) + |wz| xm + |wy| xm ym)``. The bound is the sum of both;
+    ``|V|`` and ``|w|`` are the trajectory's bounds over the interval.
+    """
+    t0_s, t1_s = _finite(t0_s, "t0_s"), _finite(t1_s, "t1_s")
+    if t1_s < t0_s:
+        raise ValueError(f"t1_s must be >= t0_s, got t0_s={t0_s}, t1_s={t1_s}")
+    c = camera
+    xm = max(abs(-0.5 - c.cx), abs(c.width - 0.5 - c.cx)) / c.fx
+    ym = max(abs(-0.5 - c.cy), abs(c.height - 0.5 - c.cy)) / c.fy
+    wx, wy, wz = (float(w) for w in c.trajectory.angular_rate_bound_rad_s(t0_s, t1_s))
+    rot_x = c.fx * (wy * (1 + xm * xm) + wz * ym + wx * xm * ym)
+    rot_y = c.fy * (wx * (1 + ym * ym) + wz * xm + wy * xm * ym)
+    bound = math.hypot(rot_x, rot_y)
+    speed = float(c.trajectory.speed_bound_m_s(t0_s, t1_s))
+    if speed > 0 and len(lo):
+        r = math.sqrt(1 + xm * xm + ym * ym)
+        centre = c.trajectory.position(0.5 * (t0_s + t1_s))
+        gap = np.maximum(np.maximum(lo - centre, centre - hi), 0.0)
+        distance = float(np.sqrt((gap * gap).sum(axis=1)).min()) - 0.5 * speed * (t1_s - t0_s)
+        z_min = max(distance / r, _ZNEAR_M)
+        bound += max(c.fx, c.fy) * speed * r / z_min
+    return bound

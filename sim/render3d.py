@@ -42,7 +42,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ._gl import ZFAR_M, ZNEAR_M, _delete_offscreen, _import_pyrender, _single_sample_renderer_class, opencv_to_gl_pose
-from ._motion_field import motion_field
+from ._motion_field import image_speed_bound, motion_field
 from ._scanline import _accumulate_pieces, _prefix_rows
 from ._visibility import _cast_rays_kernel, _point_depth_kernel, _visible_pieces_kernel
 from .boxes import FACE_ORDER, Box3D, box_edges, box_faces
@@ -541,28 +541,10 @@ class MeshRenderer:
         ``max(fx, fy) |V| r / Z``; any visible point has ``Z >= D / r`` where ``D`` is the
         Euclidean distance from the camera centre to the nearest box (bounded over the interval
         by its value at the midpoint minus ``|v| (t1 - t0) / 2``; never below the 5 cm near
-        plane); ``|V|`` and the rates ``|w|`` are the trajectory's bounds over the interval. The rotational part is bounded term by term with ``|x| <= xm``, ``|y| <= ym``:
-        ``|vx| <= fx (|wy| (1 + xm^2) + |wz| ym + |wx| xm ym)`` and
-        ``|vy| <= fy (|wx| (1 + ym^2) + |wz| xm + |wy| xm ym)``. The bound is the sum of both.
+        plane); ``|V|`` and the rates ``|w|`` are the trajectory's bounds over the interval
+        (:func:`evedge.sim._motion_field.image_speed_bound`).
         """
-        t0_s, t1_s = _finite(t0_s, "t0_s"), _finite(t1_s, "t1_s")
-        if t1_s < t0_s:
-            raise ValueError(f"t1_s must be >= t0_s, got t0_s={t0_s}, t1_s={t1_s}")
-        xm = max(abs(-0.5 - self.cx), abs(self.width - 0.5 - self.cx)) / self.fx
-        ym = max(abs(-0.5 - self.cy), abs(self.height - 0.5 - self.cy)) / self.fy
-        wx, wy, wz = (float(w) for w in self.trajectory.angular_rate_bound_rad_s(t0_s, t1_s))
-        rot_x = self.fx * (wy * (1 + xm * xm) + wz * ym + wx * xm * ym)
-        rot_y = self.fy * (wx * (1 + ym * ym) + wz * xm + wy * xm * ym)
-        bound = math.hypot(rot_x, rot_y)
-        speed = float(self.trajectory.speed_bound_m_s(t0_s, t1_s))
-        if speed > 0 and len(self.boxes):
-            r = math.sqrt(1 + xm * xm + ym * ym)
-            centre = self.trajectory.position(0.5 * (t0_s + t1_s))
-            gap = np.maximum(np.maximum(self._lo - centre, centre - self._hi), 0.0)
-            distance = float(np.sqrt((gap * gap).sum(axis=1)).min()) - 0.5 * speed * (t1_s - t0_s)
-            z_min = max(distance / r, ZNEAR_M)
-            bound += max(self.fx, self.fy) * speed * r / z_min
-        return bound
+        return image_speed_bound(self, t0_s, t1_s, self._lo, self._hi)
 
     def close(self) -> None:
         """Free the OpenGL context, if one was made (idempotent); the renderer cannot render afterwards."""
