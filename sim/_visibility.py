@@ -248,3 +248,31 @@ def _point_depth_kernel(x, y, rot, centre, lo, hi, normals, offsets, out_id, out
         else:
             n0, n1, n2 = normals[f, 0], normals[f, 1], normals[f, 2]
             out_z[i] = (offsets[f] - (n0 * c0 + n1 * c1 + n2 * c2)) / (n0 * d0 + n1 * d1 + n2 * d2)
+
+
+@njit(cache=True)
+def _left_border_kernel(cuts, height, rot, centre, fx, fy, cx, cy, lo, hi, lut, out):
+    """Mean intensity along the left image border ``u = -0.5`` over each pixel row, ``out`` (H,).
+
+    The border is cut at the row borders and at ``cuts`` (sorted: where visible pieces end on
+    it); each part shows one face, found by a ray 1e-7 px inside the image at its midpoint.
+    """
+    for i in range(height):
+        out[i] = 0.0
+    n = cuts.shape[0]
+    k = 0
+    prev = -0.5
+    row = 0
+    while row < height:
+        top = row + 0.5
+        # the next break: a cut inside (prev, top), else the row border
+        while k < n and cuts[k] <= prev:
+            k += 1
+        nxt = cuts[k] if (k < n and cuts[k] < top) else top
+        mid = 0.5 * (nxt + prev)
+        f = _pixel_face(-0.5 + 1e-7, mid, rot, centre, fx, fy, cx, cy, lo, hi)
+        r = min(max(int(math.floor(mid + 0.5)), 0), height - 1)
+        out[r] += lut[f] * (nxt - prev)
+        prev = nxt
+        if nxt == top:
+            row += 1

@@ -44,7 +44,7 @@ import numpy as np
 from ._gl import ZFAR_M, ZNEAR_M, _delete_offscreen, _import_pyrender, _single_sample_renderer_class, opencv_to_gl_pose
 from ._motion_field import image_speed_bound, motion_field
 from ._scanline import _accumulate_pieces, _prefix_rows
-from ._visibility import _cast_rays_kernel, _point_depth_kernel, _visible_pieces_kernel
+from ._visibility import _cast_rays_kernel, _left_border_kernel, _point_depth_kernel, _visible_pieces_kernel
 from .boxes import FACE_ORDER, Box3D, box_edges, box_faces
 from .trajectory import CameraTrajectory, KeyframeTrajectory, _finite, _Trajectory, rotation_from_rpy
 
@@ -516,17 +516,13 @@ class MeshRenderer:
 
     def _left_border(self, t_s: float, p: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Mean intensity along the left image border ``u = -0.5`` over each row (H,)."""
-        height = self.height
         ends = np.concatenate([p, q])
-        cuts = ends[np.abs(ends[:, 0] + 0.5) < 1e-9, 1]
-        breaks = np.unique(np.concatenate([np.arange(height + 1) - 0.5, np.clip(cuts, -0.5, height - 0.5)]))
-        mids = 0.5 * (breaks[1:] + breaks[:-1])
-        u = np.full(mids.size, -0.5 + 1e-7)
-        rays = np.column_stack([(u - self.cx) / self.fx, (mids - self.cy) / self.fy, np.ones(mids.size)])
-        ids = _cast_rays(self.trajectory.position(t_s), rays @ self.trajectory.rotation(t_s).T,
-                         self._lo, self._hi)
-        row = np.clip(np.floor(mids + 0.5).astype(np.int64), 0, height - 1)
-        return np.bincount(row, weights=self._lut[ids] * np.diff(breaks), minlength=height)
+        cuts = np.sort(np.clip(ends[np.abs(ends[:, 0] + 0.5) < 1e-9, 1], -0.5, self.height - 0.5))
+        out = np.empty(self.height)
+        _left_border_kernel(cuts, self.height, np.ascontiguousarray(self.trajectory.rotation(t_s)),
+                            np.ascontiguousarray(self.trajectory.position(t_s)), self.fx, self.fy, self.cx, self.cy,
+                            self._lo, self._hi, self._lut, out)
+        return out
 
     def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
         """Upper bound on the image speed ``|flow|`` over all pixels for ``t`` in ``[t0_s, t1_s]``.
