@@ -119,7 +119,7 @@ def parse_mesh(top, duration_s: float):
     method = render.string("method", "auto", choices=("auto", "exact", "raster"))
     if method == "exact" and meshes:
         render.fail("method", "'exact' renders boxes only; scenes with [[meshes]] need 'raster' (or 'auto')")
-    supersample = render.number("supersample", 5, lo=1, hi=15, integer=True)
+    supersample = render.number("supersample", 3, lo=1, hi=15, integer=True)
     if supersample % 2 == 0:
         render.fail("supersample", f"must be odd (a sample at each pixel centre), got {supersample}")
     render.finish()
