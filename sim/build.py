@@ -9,12 +9,10 @@ def build_trajectory(motion: dict):
     """The camera trajectory of a mesh scene's ``motion`` (see :mod:`evedge.sim.scene3d`)."""
     from .trajectory import CameraTrajectory, KeyframeTrajectory, rotation_from_rpy
 
-    kwargs = dict(motion)
-    kind = kwargs.pop("kind", "constant")
-    if kind == "constant":
-        return CameraTrajectory(**kwargs)
-    return KeyframeTrajectory(kwargs["times_s"], kwargs["positions_m"],
-                              [rotation_from_rpy(*rpy) for rpy in kwargs["rotations_rpy_rad"]])
+    if "times_s" not in motion:
+        return CameraTrajectory(**motion)
+    return KeyframeTrajectory(motion["times_s"], motion["positions_m"],
+                              [rotation_from_rpy(*rpy) for rpy in motion["rotations_rpy_rad"]])
 
 
 def build_renderer(scene):
@@ -27,16 +25,16 @@ def build_renderer(scene):
         return ShapesRenderer(s.width, s.height, list(scene.objects), scene.motion, background=scene.background)
     if scene.kind == "mesh":
         trajectory = build_trajectory(scene.motion)
-        objects = scene.objects
-        if objects["render"]["method"] == "exact":
+        setup = scene.setup_3d or {"meshes": (), "render": {"method": "exact", "supersample": 3}}
+        if setup["render"]["method"] == "exact":
             from .render3d import Box3D, MeshRenderer
 
-            boxes = [Box3D(**b) for b in objects["boxes"]]
+            boxes = [Box3D(**b) for b in scene.objects]
             return MeshRenderer(s.width, s.height, s.fx, s.fy, s.cx, s.cy, boxes, trajectory,
                                 background=scene.background)
         from .mesh import RasterMeshRenderer, scene_meshes
 
         return RasterMeshRenderer(s.width, s.height, s.fx, s.fy, s.cx, s.cy,
-                                  scene_meshes(objects["boxes"], objects["meshes"], scene.source), trajectory,
-                                  background=scene.background, supersample=objects["render"]["supersample"])
+                                  scene_meshes(scene.objects, setup["meshes"], scene.source), trajectory,
+                                  background=scene.background, supersample=setup["render"]["supersample"])
     raise ValueError(f"{scene.source}: key 'scene.kind': unknown kind {scene.kind!r}")

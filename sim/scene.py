@@ -170,6 +170,8 @@ class Scene:
     sections: tuple[Section, ...] = ()
     description: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
+    #: mesh scenes: ``{"meshes", "render", "imu"}`` (see :mod:`evedge.sim.scene3d`); empty otherwise
+    setup_3d: dict = field(default_factory=dict, compare=False, repr=False)
 
     def build_renderer(self):
         """A renderer for this scene (imports the 3-D renderer only for ``mesh`` scenes)."""
@@ -356,6 +358,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
         t.finish()
         sections.append(s)
     motion = None
+    setup_3d = {}
     if kind == "stripes":
         objects = _stripes(top, sensor)
     elif kind == "shapes":
@@ -364,11 +367,11 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     else:
         from .scene3d import parse_mesh  # camera trajectory, boxes, meshes, IMU (3-D schema)
 
-        objects, motion = parse_mesh(top, duration)
+        objects, motion, setup_3d = parse_mesh(top, duration)
     top.finish()
     return Scene(name=name, kind=kind, source=source, duration_s=duration, seed=seed, frame_rate_hz=frame_rate,
                  sensor=sensor, params=params, background=background, objects=objects, motion=motion,
-                 sections=tuple(sections), description=description, raw=data)
+                 sections=tuple(sections), description=description, raw=data, setup_3d=setup_3d)
 
 
 def load_scene(path) -> Scene:

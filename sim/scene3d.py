@@ -29,12 +29,11 @@ def _intensity_list(t, name, count):
 
 
 def _camera(cam, duration_s):
-    """``{"kind": "constant", ...CameraTrajectory kwargs}`` or ``{"kind": "keyframes", ...}``."""
+    """CameraTrajectory keyword arguments (constant velocity), or ``{"times_s", "positions_m", "rotations_rpy_rad"}``."""
     keys = cam.array_of_tables("keyframes")
     constant = [k for k in ("velocity_m_s", "angular_velocity_deg_s", "position_m", "rotation_rpy_deg") if cam.has(k)]
     if not keys:
         motion = dict(
-            kind="constant",
             position_m=cam.vector("position_m", 3, (0.0, 0.0, 0.0)),
             velocity_m_s=cam.vector("velocity_m_s", 3, (0.0, 0.0, 0.0)),
             rotation_rpy_rad=tuple(math.radians(a) for a in cam.vector("rotation_rpy_deg", 3, (0.0, 0.0, 0.0))),
@@ -57,7 +56,7 @@ def _camera(cam, duration_s):
         k.finish()
     if times[0] > 0 or times[-1] < duration_s:
         cam.fail("keyframes", f"keyframe times [{times[0]}, {times[-1]}] must cover the scene [0, {duration_s}]")
-    return dict(kind="keyframes", times_s=tuple(times), positions_m=tuple(positions), rotations_rpy_rad=tuple(rpy))
+    return dict(times_s=tuple(times), positions_m=tuple(positions), rotations_rpy_rad=tuple(rpy))
 
 
 def _texture(t):
@@ -99,7 +98,12 @@ def _mesh_entry(t, base: Path):
 
 
 def parse_mesh(top, duration_s: float):
-    """``(objects, motion)`` of a mesh scene: objects ``{"boxes", "meshes", "render", "imu"}``."""
+    """``(boxes, motion, setup)`` of a mesh scene.
+
+    ``boxes``: tuple of :class:`~evedge.sim.boxes.Box3D` keyword dicts (the scene's ``objects``);
+    ``motion``: the camera trajectory (see :func:`evedge.sim.build.build_trajectory`);
+    ``setup``: ``{"meshes", "render", "imu"}`` (the scene's ``setup_3d``).
+    """
     base = Path(top.source).parent
     cam = top.table("camera", required=True)
     motion = _camera(cam, duration_s)
@@ -127,8 +131,8 @@ def parse_mesh(top, duration_s: float):
     imu_cfg = dict(rate_hz=imu.number("rate_hz", 1000.0, lo=0, hi=1e6),
                    gravity_m_s2=imu.vector("gravity_m_s2", 3, GRAVITY_M_S2))
     imu.finish()
-    objects = dict(boxes=tuple(boxes), meshes=tuple(meshes),
-                   render=dict(method="raster" if (method == "auto" and meshes) else
-                               ("exact" if method == "auto" else method), supersample=supersample),
-                   imu=imu_cfg)
-    return objects, motion
+    setup = dict(meshes=tuple(meshes),
+                 render=dict(method="raster" if (method == "auto" and meshes) else
+                             ("exact" if method == "auto" else method), supersample=supersample),
+                 imu=imu_cfg)
+    return tuple(boxes), motion, setup

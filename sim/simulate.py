@@ -189,12 +189,13 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
     finally:
         renderer.close()
     imu_rows = None
-    if scene.kind == "mesh" and scene.objects["imu"]["rate_hz"] > 0:
+    imu_cfg = scene.setup_3d.get("imu") if scene.kind == "mesh" else None
+    if imu_cfg and imu_cfg["rate_hz"] > 0:
         from .build import build_trajectory
         from .trajectory import imu_table
 
-        imu_rows = imu_table(build_trajectory(scene.motion), scene.objects["imu"]["rate_hz"], scene.duration_s,
-                             scene.objects["imu"]["gravity_m_s2"])
+        imu_rows = imu_table(build_trajectory(scene.motion), imu_cfg["rate_hz"], scene.duration_s,
+                             imu_cfg["gravity_m_s2"])
     events = np.concatenate(ev_parts)
     truth = np.concatenate(tr_parts) if tr_parts else np.empty(0, dtype=TRUTH_DTYPE)
     frame_us = np.rint(frame_t * 1e6).astype(np.int64)

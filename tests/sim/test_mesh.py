@@ -243,8 +243,8 @@ def test_shipped_textured_scene(gl):
     from evedge.sim import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[2] / "scenes" / "textured_3d.toml")
-    assert scene.objects["render"] == {"method": "raster", "supersample": 3}
-    assert scene.motion["kind"] == "keyframes" and len(scene.objects["meshes"]) == 4
+    assert scene.setup_3d["render"] == {"method": "raster", "supersample": 3}
+    assert "times_s" in scene.motion and len(scene.setup_3d["meshes"]) == 4
     rec = simulate(scene, duration_s=0.004, progress=False)
     image = rec.frames.images[0]
     assert image.shape == (180, 240)

@@ -65,7 +65,7 @@ def test_analytic_visibility_matches_sampled_reference(layout):
 def test_boxes_3d_matches_reference_along_the_scene():
     scene = load_scene(SCENES / "boxes_3d.toml")
     s = scene.sensor
-    boxes, tr = [Box3D(**b) for b in scene.objects["boxes"]], build_trajectory(scene.motion)
+    boxes, tr = [Box3D(**b) for b in scene.objects], build_trajectory(scene.motion)
     fast, slow = _pair(tr, boxes, width=s.width, height=s.height, fx=s.fx, fy=s.fy, cx=s.cx, cy=s.cy)
     for t in np.linspace(0.0, scene.duration_s, 6):
         assert np.abs(fast.intensity(t) - slow.intensity(t)).max() <= 1e-7
