@@ -51,6 +51,11 @@ def bench() -> None:
     """The paper's experiments: metrics, figures, tables and an HTML report."""
 
 
+from .sweep_cli import sweep  # noqa: E402  (its heavy imports happen when it runs)
+
+bench.add_command(sweep)
+
+
 def _summary(results: dict, t0: float) -> None:
     for v in results.get("verdicts", []):
         click.echo(f"  [{v['status'].upper():11s}] {v['claim']}")

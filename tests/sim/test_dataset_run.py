@@ -51,8 +51,13 @@ def _workers_left(wait_s=10.0):
 
     deadline = time.monotonic() + wait_s
     while True:
-        left = [p for p in psutil.Process().children(recursive=True)
-                if "resource_tracker" not in " ".join(p.cmdline())]
+        left = []
+        for p in psutil.Process().children(recursive=True):
+            try:
+                if "resource_tracker" not in " ".join(p.cmdline()):
+                    left.append(p)
+            except psutil.NoSuchProcess:  # exited while we looked
+                pass
         if not left or time.monotonic() > deadline:
             return left
         time.sleep(0.1)
