@@ -49,7 +49,7 @@ import json
 import math
 import time
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -139,12 +139,14 @@ def load_sweep(path) -> SweepSpec:
     """Read and validate a sweep spec file (TOML); errors as :func:`parse_sweep`."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+        text = path.read_bytes().decode("utf-8")
+        data = tomllib.loads(text)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read sweep spec: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{path}: not valid TOML: {exc}") from None
-    return parse_sweep(data, str(path))
+    sweep = parse_sweep(data, str(path))
+    return replace(sweep, dataset=replace(sweep.dataset, text=text))
 
 
 @dataclass(frozen=True)
@@ -224,7 +226,7 @@ def results_rows(spec: DatasetSpec, manifest: dict, grades: dict) -> list[list]:
     rows = []
     for i in sorted(grades):
         seq = manifest[i]
-        params = [seq["params"][k] for k in names]
+        params = [seq["params"].get(k) for k in names]
         for g in grades[i]["metrics"]:
             rows.append(["sweep", spec.name, g["reference"], g["method"], g["display"], seq["name"],
                          g["metric"], g["value"], *params])
@@ -281,7 +283,7 @@ def _panel(ax, spec: DatasetSpec, rows: list[dict], methods: list[str], param: s
         if numeric:
             x = np.array([r[f"param_{param}"] for r in mr], dtype=np.float64)
             ax.scatter(x, y, s=9, alpha=0.35, color=colour, linewidths=0)
-            cx, q1, med, q3 = _binned(x, y, max(2, min(8, len(x) // 3)), log)
+            cx, q1, med, q3 = _binned(x, y, max(2, min(6, len(x) // 6)), log)
             ax.plot(cx, med, style, color=colour, label=m, marker="o", ms=3)
             ax.fill_between(cx, q1, q3, color=colour, alpha=0.15, linewidth=0)
         else:
@@ -295,7 +297,11 @@ def _panel(ax, spec: DatasetSpec, rows: list[dict], methods: list[str], param: s
     if cats is not None:
         ax.set_xticks(np.arange(len(cats)), cats)
     elif log:
+        from matplotlib.ticker import NullFormatter, ScalarFormatter
+
         ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(param)
     ax.grid(alpha=0.3)
 

@@ -35,8 +35,8 @@ import numpy as np
 
 from .scene import MAX_DURATION_S, SENSOR_PRESETS, SHAPE_KINDS, SceneError, _Table, parse_scene
 
-#: Scene families a dataset can draw from (the planar scene kinds).
-FAMILIES = ("stripes", "shapes")
+#: Scene families a dataset can draw from: the planar scene kinds, and boxes (a ``mesh`` scene).
+FAMILIES = ("stripes", "shapes", "boxes")
 #: Distributions a parameter may take instead of a fixed value.
 DISTRIBUTIONS = ("uniform", "log_uniform", "integers", "choice")
 #: Largest number of sequences in one spec.
@@ -83,8 +83,10 @@ PARAMETERS: dict[str, Param] = {
     "frame_rate_hz": Param("number", 100.0, "rate of clean frames and exact edge maps (0: none)", lo=0, hi=1e6),
     "speed_px_s": Param("number", 100.0, "image speed of the pattern", lo=0),
     "direction_deg": Param("number", 0.0, "direction of motion (0: +x, 90: +y, image axes)"),
-    "angle_deg": Param("number", 0.0, "stripes: direction of the stripe normal; shapes: rotation at t = 0"),
-    "angular_velocity_deg_s": Param("number", 0.0, "shapes: rotation speed about the image centre"),
+    "angle_deg": Param("number", 0.0, "stripes: direction of the stripe normal; shapes: rotation at t = 0; "
+                                      "boxes: camera roll at t = 0"),
+    "angular_velocity_deg_s": Param("number", 0.0, "shapes: rotation speed about the image centre; "
+                                                   "boxes: camera roll rate"),
     "contrast": Param("number", 0.6, "Michelson contrast of pattern against background", lo=0, lo_open=True, hi=1),
     "mean_intensity": Param("number", 0.5, "mean of dark and light (linear)", lo=0, lo_open=True, hi=1),
     "period_px": Param("number", 20.0, "stripes: period", lo=0, lo_open=True),
@@ -93,6 +95,11 @@ PARAMETERS: dict[str, Param] = {
                         choices=DATASET_SHAPE_KINDS, per_shape=True),
     "shape_radius_px": Param("number", 10.0, "shapes: circumradius of each shape (drawn per shape)",
                              lo=0, lo_open=True, per_shape=True),
+    "box_count": Param("integer", 3, "boxes: number of boxes (laid out on a grid of the image)", lo=1, hi=256),
+    "box_depth_m": Param("number", 3.0, "boxes: depth of each box centre (drawn per box)", lo=0.2, hi=1e4,
+                         per_shape=True),
+    "box_size_m": Param("number", 0.6, "boxes: edge of each (cubic) box (drawn per box)", lo=0, lo_open=True,
+                        per_shape=True),
     "threshold": Param("number", 0.2, "contrast threshold C+ = C- (log units)", lo=0, lo_open=True),
     "threshold_mismatch": Param("number", 0.0, "per-pixel threshold std (events.contrast_sigma)", lo=0),
     "noise_rate_hz": Param("number", 0.0, "background activity per pixel", lo=0, hi=1e6),
@@ -147,6 +154,7 @@ class DatasetSpec:
     description: str = ""
     source: str = "<dataset>"
     raw: dict = field(default_factory=dict, compare=False, repr=False)
+    text: str = field(default="", compare=False, repr=False)  # the spec file's text, for the dataset card
 
     @property
     def swept(self) -> tuple[str, ...]:
@@ -290,12 +298,13 @@ def load_dataset(path) -> DatasetSpec:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+        text = path.read_bytes().decode("utf-8")
+        data = tomllib.loads(text)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read dataset spec: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{path}: not valid TOML: {exc}") from None
-    return parse_dataset(data, source=str(path))
+    return replace(parse_dataset(data, source=str(path)), text=text)
 
 
 def _stream(spec: DatasetSpec, index: int, *key: int) -> np.random.Generator:
@@ -315,9 +324,11 @@ def draw_parameters(spec: DatasetSpec, index: int) -> dict:
     for name, p in PARAMETERS.items():
         if not p.per_shape:
             out[name] = spec.parameters[name].draw(_stream(spec, index, _crc(name)))
-    n = out["shape_count"] if out["family"] == "shapes" else 0
+    counts = {"shape": out["shape_count"] if out["family"] == "shapes" else 0,
+              "box": out["box_count"] if out["family"] == "boxes" else 0}
     for name, p in PARAMETERS.items():
         if p.per_shape:
+            n = counts[name.split("_")[0]]
             out[name] = [spec.parameters[name].draw(_stream(spec, index, _crc(name), k)) for k in range(n)]
     return out
 
@@ -337,6 +348,50 @@ def _sensor_size(name: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
+def _intrinsics(name: str) -> tuple[float, float, float, float]:
+    """(fx, fy, cx, cy) the scene loader gives this sensor (``WxH``: f = width, centred)."""
+    s = SENSOR_PRESETS.get(name)
+    if s is not None:
+        return s["fx"], s["fy"], s["cx"], s["cy"]
+    w, h = _sensor_size(name)
+    return float(w), float(w), (w - 1) / 2, (h - 1) / 2
+
+
+def _grid(n: int, w: int, h: int) -> tuple[int, float, float]:
+    """Columns and cell size (px) of a near-square grid of ``n`` cells over a ``w`` x ``h`` image."""
+    cols = math.ceil(math.sqrt(n * w / h))
+    rows = math.ceil(n / cols)
+    return cols, w / cols, h / rows
+
+
+def _boxes(p: dict, m: float, c: float) -> dict:
+    """The ``mesh`` part of a boxes scene: boxes on an image grid at their depths, camera moving."""
+    fx, fy, cx, cy = _intrinsics(p["sensor"])
+    w, h = _sensor_size(p["sensor"])
+    n = p["box_count"]
+    cols, cw, ch = _grid(n, w, h)
+    dark, mid = m * (1 - c), m
+    boxes = []
+    for k in range(n):
+        r, q = divmod(k, cols)
+        z = p["box_depth_m"][k]
+        u, v = (q + 0.5) * cw - 0.5, (r + 0.5) * ch - 0.5
+        # at most 0.8 of its cell at its own depth (neighbours at similar depths do not touch; the z-buffer
+        # handles any occlusion), and in front of the camera (front face at >= z / 4)
+        p["box_size_m"][k] = min(p["box_size_m"][k], 0.8 * min(cw / fx, ch / fy) * z, 1.5 * z)
+        size = p["box_size_m"][k]
+        boxes.append({"center_m": [(u - cx) * z / fx, (v - cy) * z / fy, z], "size_m": [size] * 3,
+                      "face_intensities": [mid, mid, mid, mid, dark, dark]})
+    # the image of a point at the mean depth moves at speed_px_s along direction_deg
+    z_ref = sum(p["box_depth_m"]) / n
+    a = math.radians(p["direction_deg"])
+    speed_m_s = p["speed_px_s"] * z_ref / fx
+    return {"camera": {"velocity_m_s": [-speed_m_s * math.cos(a), -speed_m_s * math.sin(a), 0.0],
+                       "rotation_rpy_deg": [p["angle_deg"], 0.0, 0.0],
+                       "angular_velocity_deg_s": [0.0, 0.0, p["angular_velocity_deg_s"]]},
+            "boxes": boxes}
+
+
 def scene_dict(p: dict, *, name: str, seed: int) -> dict:
     """The scene (``sim/SCENES.md`` schema) that parameters ``p`` describe.
 
@@ -344,6 +399,12 @@ def scene_dict(p: dict, *, name: str, seed: int) -> dict:
     ``speed_px_s`` along ``direction_deg``. Shapes: ``shape_count`` shapes on a
     near-square grid of cells, each radius at most 0.45 of its cell (so they
     never overlap; the effective radii are those recorded), moving rigidly.
+    Boxes (a ``mesh`` scene): ``box_count`` cubes on a grid of the image at
+    their depths (each at most 0.8 of its cell at its depth), front and back
+    faces dark, the others at ``m``, on a light background; the camera
+    translates so that a point at the boxes' mean depth moves at
+    ``speed_px_s`` along ``direction_deg`` in the image, rolls by
+    ``angle_deg`` at t = 0 and at ``angular_velocity_deg_s``.
     Intensities: dark ``m (1 - c)``, light ``m (1 + c)`` for mean ``m`` and
     Michelson contrast ``c`` (a light value above 1 is an invalid scene,
     reported by the scene loader).
@@ -365,11 +426,14 @@ def scene_dict(p: dict, *, name: str, seed: int) -> dict:
         scene["stripes"] = [{"period_px": p["period_px"], "angle_deg": p["angle_deg"], "velocity_px_s": velocity,
                              "dark": dark, "light": light}]
         return scene
+    if p["family"] == "boxes":
+        scene["scene"]["kind"] = "mesh"
+        scene["scene"]["background"] = light
+        scene.update(_boxes(p, m, c))
+        return scene
     w, h = _sensor_size(p["sensor"])
     n = p["shape_count"]
-    cols = math.ceil(math.sqrt(n * w / h))
-    rows = math.ceil(n / cols)
-    cw, ch = w / cols, h / rows
+    cols, cw, ch = _grid(n, w, h)
     shapes = []
     for k in range(n):
         r, q = divmod(k, cols)

@@ -323,7 +323,8 @@ def write_card(spec: DatasetSpec, out_dir: Path, rows: dict, layouts) -> Path:
         "| parameter | spec | drawn |", "|---|---|---|",
     ]
     for name, p in PARAMETERS.items():
-        vals = [r["params"][name] for r in rows.values()]
+        # .get: a row kept from a run of an older evedge may lack a newer parameter
+        vals = [r["params"].get(name) for r in rows.values() if r["params"].get(name) is not None]
         flat = [x for v in vals for x in (v if isinstance(v, list) else [v])]
         nums = [x for x in flat if isinstance(x, (int, float))]
         if nums:
@@ -341,7 +342,10 @@ def write_card(spec: DatasetSpec, out_dir: Path, rows: dict, layouts) -> Path:
     if failed:
         lines += ["## Failed sequences", ""] + [f"- {r['name']}: {r['error']}" for r in failed] + [""]
     lines += ["## Versions", ""] + [f"- {k} {v}" for k, v in _versions().items()] + [""]
-    lines += ["## Spec", "", "```json", json.dumps(spec.raw, indent=1, sort_keys=True), "```", ""]
+    if spec.text:
+        lines += ["## Spec", "", f"`{spec.source}`:", "", "```toml", spec.text.rstrip("\n"), "```", ""]
+    else:
+        lines += ["## Spec", "", "```json", json.dumps(spec.raw, indent=1, sort_keys=True), "```", ""]
     path = out_dir / "README.md"
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(x for x in lines if x is not None) + "\n", encoding="utf-8")
