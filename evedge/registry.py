@@ -228,7 +228,7 @@ class Registry:
         if kind is not None:
             kinds = (kind,) if isinstance(kind, str) else tuple(kind)
             if entry.kind not in kinds:
-                raise RegistryError(f"{self.what} {name!r} is a {entry.kind}, not a {' or '.join(kinds)}")
+                raise RegistryError(f"{self.what} {name!r} is of kind {entry.kind!r}, not {' or '.join(map(repr, kinds))}")
         return entry
 
     def names(self, kind: str | Iterable[str] | None = None) -> tuple[str, ...]:
