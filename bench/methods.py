@@ -311,30 +311,10 @@ def mueggler_t0_lifetimes(events: np.ndarray, sensor_size) -> LifetimeRun:
 
 
 def edge_detector_frames(method: str, events: np.ndarray, sensor_size, times_us, params=None) -> np.ndarray:
-    """bool (n_times, H, W) maps of a registered edge detector at ``times_us`` (any order).
+    """bool (n_times, H, W) maps of a registered edge detector (:func:`evedge.detector.pipeline.edge_frames_of`)."""
+    from evedge.detector.pipeline import edge_frames_of
 
-    Uses the entry's one-shot ``frames`` metadata when it has one (the
-    accumulation baselines), else streams the events through the detector and
-    asks ``image_at`` at each instant.
-    """
-    from evedge.detector.pipeline import make_method
-
-    entry = REGISTRY.get(method, kind="edges")
-    params = dict(params or {})
-    times = np.asarray(times_us, dtype=np.int64)
-    if "frames" in entry.metadata:
-        return np.asarray(entry.metadata["frames"](events, sensor_size, times, **params)) > 0
-    det = make_method(method, sensor_size, params, kind="edges")
-    out = np.zeros((times.size, sensor_size.height, sensor_size.width), dtype=bool)
-    order = np.argsort(times, kind="stable")
-    ends = np.searchsorted(events["t"], times[order], side="right")
-    start = 0
-    for i, end in zip(order, ends):
-        if end > start:
-            det.process(events[start:end])
-            start = end
-        out[i] = np.asarray(det.image_at(int(times[i])), dtype=bool)
-    return out
+    return edge_frames_of(method, events, sensor_size, times_us, params)
 
 
 def edge_maps(events: np.ndarray, sensor_size, times_us, *, methods=METHODS, count_n: int = 2000,

@@ -22,7 +22,8 @@ from .edges import EdgeImage
 from .protocols import METHODS
 from .result import LIFETIME_DTYPE, empty_lifetimes
 
-__all__ = ["DetectionResult", "Detector", "detect", "keep_mask", "make_method", "method_params"]
+__all__ = ["DetectionResult", "Detector", "detect", "edge_frames_of", "keep_mask", "make_method", "method_params",
+           "resolved_params"]
 
 
 @dataclass
@@ -65,6 +66,49 @@ def method_params(name: str, params) -> dict:
     raise TypeError(f"params: method {name!r} takes {takes}, got {type(params).__name__}")
 
 
+def resolved_params(name: str, params=None) -> dict:
+    """Every parameter of the registered method ``name`` with ``params`` applied (for the output's record).
+
+    With a parameter dataclass: all its fields (validated by constructing it);
+    otherwise the factory's keyword defaults updated by ``params``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        An unknown parameter (naming it and the known ones) or an invalid value.
+    """
+    import inspect
+
+    entry = METHODS.get(name)
+    given = method_params(name, params)
+    cls = entry.metadata.get("params")
+    extra = set(entry.metadata.get("extra_params", ()))
+    if cls is not None:
+        fields = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(given) - fields - extra)
+        if unknown:
+            raise TypeError(f"method {name!r} has no parameter {', '.join(map(repr, unknown))}; "
+                            f"its parameters: {', '.join(sorted(fields | extra))}")
+        value = cls(**{k: v for k, v in given.items() if k in fields})
+        out = {f: getattr(value, f) for f in sorted(fields)}
+        out.update({k: given[k] for k in extra if k in given})
+        return out
+    try:
+        sig = inspect.signature(entry.factory)
+    except (TypeError, ValueError):
+        return dict(given)
+    known = {p.name: p.default for p in list(sig.parameters.values())[1:]
+             if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    if not any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
+        unknown = sorted(set(given) - set(known))
+        if unknown:
+            raise TypeError(f"method {name!r} has no parameter {', '.join(map(repr, unknown))}; "
+                            f"its parameters: {', '.join(sorted(known)) or 'none'}")
+    out = {k: v for k, v in known.items() if v is not inspect.Parameter.empty}
+    out.update(given)
+    return out
+
+
 def make_method(name: str, sensor_size, params=None, *, kind=None):
     """Build the registered method ``name`` (or ``package.module:factory``) for a sensor.
 
@@ -105,6 +149,35 @@ def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None) ->
         mask[j] = True
         j += 1
     return mask
+
+
+def edge_frames_of(method: str, events: np.ndarray, sensor_size, times_us, params=None) -> np.ndarray:
+    """bool (n_times, H, W) maps of a registered edge detector at ``times_us`` (any order).
+
+    Uses the entry's one-shot ``frames`` metadata when it has one (the
+    accumulation baselines), else streams the events through the detector and
+    asks ``image_at`` at each instant.
+    """
+    sensor_size = check_sensor_size(sensor_size)
+    entry = METHODS.get(method, kind="edges")
+    kw = method_params(method, params)
+    times = np.asarray(times_us, dtype=np.int64)
+    if "frames" in entry.metadata:
+        return np.asarray(entry.metadata["frames"](events, sensor_size, times, **kw)) > 0
+    det = entry.factory(sensor_size, **kw)
+    out = np.zeros((times.size, sensor_size.height, sensor_size.width), dtype=bool)
+    order = np.argsort(times, kind="stable")
+    ends = np.searchsorted(events["t"], times[order], side="right")
+    start = 0
+    for i, end in zip(order, ends):
+        if end > start:
+            det.process(events[start:end])
+            start = end
+        img = np.asarray(det.image_at(int(times[i])))
+        if img.shape != sensor_size.shape:
+            raise ValueError(f"method {method!r}: image_at returned shape {img.shape}, expected {sensor_size.shape}")
+        out[i] = img.astype(bool)
+    return out
 
 
 def _default_filter(method: str, use_buffer, filter_name):
