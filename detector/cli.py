@@ -210,6 +210,9 @@ class _DetectCommand(click.Command):
               help="Edge frames per second over the recording (ignored with --times).")
 @click.option("--times", callback=_times, metavar="T1,T2,...",
               help="Edge-frame instants in microseconds, non-decreasing.")
+@click.option("--at-frames", is_flag=True,
+              help="Edge frames at the input's own frame times (its exact edge maps, else its grey frames), "
+                   "as evedge grade compares them; replaces --fps/--times.")
 @click.option("--window-ms", type=click.FloatRange(min=0.001), default=None, callback=_finite,
               help="Time window of --method time (default 30; same as --param window_us=...).")
 @click.option("--count", "n_events", type=click.IntRange(min=1), default=None,
@@ -227,7 +230,7 @@ class _DetectCommand(click.Command):
 @click.option("--embed-events/--no-embed-events", default=True, show_default=True,
               help="Store the events in detection.h5 (else only the source's sha256 and absolute path).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
-def detect(events_file, out, method, param_items, config, fps, times, window_ms, n_events, sensor, sort, use_buffer,
+def detect(events_file, out, method, param_items, config, fps, times, at_frames, window_ms, n_events, sensor, sort, use_buffer,
            display, seed, embed_events, quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads) with any registered method.
 
@@ -277,6 +280,11 @@ def detect(events_file, out, method, param_items, config, fps, times, window_ms,
     except (ValueError, TypeError, OSError) as err:
         raise click.ClickException(str(err)) from None
     events, size = rec.events, rec.sensor_size
+    if at_frames:
+        stack = rec.edges if rec.edges is not None and len(rec.edges) else rec.frames
+        if stack is None or not len(stack):
+            raise click.BadParameter(f"{events_file} has no frames or edge maps", param_hint="'--at-frames'")
+        times = np.asarray(stack.t_us, dtype=np.int64)
     if times is None and events.size:
         n_frames = int((int(events["t"][-1]) - int(events["t"][0])) * fps / 1e6)
         if n_frames * size.width * size.height > _MAX_FRAME_BYTES:
@@ -302,7 +310,7 @@ def detect(events_file, out, method, param_items, config, fps, times, window_ms,
             "display": display if entry.kind == "estimator" else None,
             "source": {"path": str(source), "sha256": file_sha256(source), "n_events": int(events.size),
                        "format": rec.metadata.get("format"), "sorted_on_load": bool(rec.metadata.get("sorted_on_load", False))},
-            "events_embedded": bool(embed_events), "frame_times": "--times" if times is not None else f"--fps {fps:g}",
+            "events_embedded": bool(embed_events), "frame_times": "--at-frames" if at_frames else "--times" if times is not None else f"--fps {fps:g}",
             "versions": _versions(), "command": "evedge detect"}
     table = None
     if lifetimes is not None:
