@@ -244,7 +244,7 @@ def _as_lifetimes(t: np.ndarray) -> np.ndarray:
 
 def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: int = 0,
                  real_path=None, sim_duration_s: float | None = None, datasets=("stripes_real", "stripes_sim"),
-                 recordings: dict | None = None) -> dict:
+                 recordings: dict | None = None, data_dir=None) -> dict:
     """Lifetime histograms, accumulated lifetime images and errors on the stripes data.
 
     Parameters
@@ -318,7 +318,7 @@ def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_d
     if name == "stripes_real":
         from evedge.io import read_events
 
-        path = Path(real_path) if real_path else default_realdata_dir() / "rpg_event_lifetime" / "stripes.mat"
+        path = Path(real_path) if real_path else default_realdata_dir(data_dir) / "rpg_event_lifetime" / "stripes.mat"
         if not path.exists():
             raise FileNotFoundError(f"run_lifetime: stripes recording not found: {path}")
         return read_events(path)
