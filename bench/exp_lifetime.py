@@ -262,6 +262,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         Which of ``stripes_real`` and ``stripes_sim`` to run.
     recordings : dict, optional
         Precomputed recordings by dataset name (skips reading/simulating).
+    data_dir : path, optional
+        Folder of the real recordings (default ``$EVEDGE_DATA``, else ``../shared/realdata``).
 
     Returns
     -------
@@ -270,6 +272,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         "truth": {...}}}, "figures": [...]}``
     """
     out_dir = Path(out_dir)
+    if real_path is None and data_dir is not None:
+        real_path = default_realdata_dir(data_dir) / "rpg_event_lifetime" / "stripes.mat"
     recordings = dict(recordings or {})
     results, figures, rows, region_rows, skipped = {}, [], [], [], {}
     for name in datasets:
@@ -318,7 +322,7 @@ def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_d
     if name == "stripes_real":
         from evedge.io import read_events
 
-        path = Path(real_path) if real_path else default_realdata_dir(data_dir) / "rpg_event_lifetime" / "stripes.mat"
+        path = Path(real_path) if real_path else default_realdata_dir() / "rpg_event_lifetime" / "stripes.mat"
         if not path.exists():
             raise FileNotFoundError(f"run_lifetime: stripes recording not found: {path}")
         return read_events(path)

@@ -55,6 +55,8 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
         From :func:`panel_row`; default: two frames of the real ``slider_depth``.
     quick, progress : bool
         Unused beyond the default rows (kept for a uniform experiment signature).
+    data_dir : path, optional
+        Folder of the real recordings, for the default rows (see :func:`~evedge.bench.exp_real.default_realdata_dir`).
 
     Returns
     -------
