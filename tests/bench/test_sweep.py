@@ -1,5 +1,6 @@
 """Sweeps: a 2-worker LocalCluster makes and grades 4 tiny sequences; parallel = serial grades; resume."""
 
+import csv
 import math
 import time
 
@@ -8,7 +9,8 @@ import pytest
 
 from evedge.bench.cdm import cdm
 from evedge.bench.methods import METHODS, edge_maps
-from evedge.bench.sweep import COLUMNS, GradeTask, grade_sequence, load_sweep, parse_sweep, read_results, run_sweep
+from evedge.bench.results import read_results
+from evedge.bench.sweep import GradeTask, grade_sequence, load_sweep, parse_sweep, run_sweep
 from evedge.io import read_hdf5
 from evedge.parallel import dask_client
 from evedge.sim.dataset import DatasetError
@@ -51,32 +53,41 @@ def swept(client, tmp_path_factory):
     return out, res
 
 
+def _all(table, **where):
+    return table.query(section="all", **where)
+
+
 def test_sweep_grades_every_sequence_and_method(swept):
     out, res = swept
     assert res["graded"] == 4 and res["failed"] == {} and res["reused"] == 0
     table = read_results(out / "results.csv")
-    assert list(table[0])[:len(COLUMNS)] == list(COLUMNS)
-    assert "param_speed_px_s" in table[0] and "param_noise_rate_hz" in table[0]
-    cdm_rows = [r for r in table if r["metric"] == "cdm"]
+    assert len(read_results(out / "results.h5")) == len(table) == res["rows"]
+    assert set(table.unique("experiment")) == {"sweep"}
+    assert table.unique("dataset") == [f"seq_{i:05d}" for i in range(4)]
+    cdm_rows = _all(table, metric="median_cdm", reference="exact")
     assert len(cdm_rows) == 4 * len(METHODS)
-    assert {r["method"] for r in cdm_rows} == set(METHODS)
+    assert {r["variant"] for r in cdm_rows} == set(METHODS)
     assert all(0 <= r["value"] <= 100 for r in cdm_rows)
-    lt = [r for r in table if r["metric"] == "lifetime_rel_error"]
-    assert {r["method"] for r in lt} == {"proposed", "mueggler"} and len(lt) == 8
-    assert all(r["display"] == "" for r in lt)
-    assert {r["display"] for r in cdm_rows if r["method"] == "proposed_noclear"} == {"lifetime_only"}
-    est = [r["value"] for r in table if r["metric"] == "lifetime_estimated"]
-    assert all(0 <= v <= 1 for v in est)
-    # the parameters in the table are those the manifest drew
-    manifest = read_manifest(out / "dataset")
-    for r in cdm_rows:
-        row = next(m for m in manifest.values() if m["name"] == r["section"])
-        assert float(r["param_speed_px_s"]) == pytest.approx(row["params"]["speed_px_s"], rel=1e-12)
+    assert {r["display"] for r in cdm_rows if r["variant"] == "proposed_noclear"} == {"lifetime_only"}
+    assert {r["method"] for r in cdm_rows if r["variant"].startswith("acc_")} == {"time", "count"}
+    # per-event metrics once per lifetime method, not once per display policy
+    lt = _all(table, metric="median_rel_error", reference="truth")
+    assert {(r["method"], r["variant"]) for r in lt} == {("intra", "proposed"), ("mueggler", "mueggler")}
+    assert len(lt) == 8 and all(0 <= r["value"] < 10 for r in lt)
+    est = [r["value"] for r in _all(table, metric="share_estimated")]
+    assert est and all(0 <= v <= 1 for v in est)
+    # parameters per sequence, joined on the dataset column, are those the manifest drew
+    manifest = {r["name"]: r for r in read_manifest(out / "dataset").values()}
+    with open(out / "sequences.csv", newline="") as f:
+        seqs = list(csv.DictReader(f))
+    assert [s["dataset"] for s in seqs] == sorted(manifest)
+    for s in seqs:
+        assert float(s["speed_px_s"]) == manifest[s["dataset"]]["params"]["speed_px_s"]
     report = (out / "report.md").read_text()
     for fig in res["figures"]:
         assert fig.stat().st_size > 1000 and fig.name in report
-    assert {f.name for f in res["figures"]} == {"sweep_cdm.png", "sweep_lifetime_rel_error.png",
-                                                "sweep_lifetime_estimated.png"}
+    assert {f.name for f in res["figures"]} == {"sweep_median_cdm.png", "sweep_median_rel_error.png",
+                                                "sweep_share_estimated.png"}
 
 
 def test_parallel_grades_equal_a_direct_serial_computation(swept, tmp_path):
@@ -89,17 +100,27 @@ def test_parallel_grades_equal_a_direct_serial_computation(swept, tmp_path):
     n = int(round(truth.reshape(truth.shape[0], -1).sum(axis=1).mean()))
     maps, runs = edge_maps(rec.events, rec.sensor_size, times, methods=("proposed", "acc_30ms", "acc_count"),
                            count_n=max(1, n))
+    inside = times <= rec.events["t"][-1]  # section 'all' ends with the last event
+    assert inside.sum() >= 1
     for m in ("proposed", "acc_30ms", "acc_count"):
-        expected = np.mean([cdm(maps[m][k], truth[k]) for k in range(times.size)])
-        got = next(r["value"] for r in table if r["section"] == "seq_00001" and r["method"] == m
-                   and r["metric"] == "cdm")
+        expected = np.median([cdm(maps[m][k], truth[k]) for k in np.flatnonzero(inside)])
+        got = table.value(dataset="seq_00001", variant=m, metric="median_cdm", reference="exact", section="all")
         assert got == pytest.approx(expected, rel=1e-12, abs=1e-12)
-    # and the task itself, run here, gives the worker's numbers
-    serial = grade_sequence(GradeTask(str(path), "x", tuple(METHODS), 0.02, str(tmp_path / "g.json")))
-    for g in serial["metrics"]:
-        got = next(r["value"] for r in table if r["section"] == "seq_00001" and r["method"] == g["method"]
-                   and r["metric"] == g["metric"])
-        assert (math.isnan(got) and math.isnan(g["value"])) or got == pytest.approx(g["value"], rel=1e-12)
+    # lifetime error of the proposed method from its own run and the truth
+    run = runs["proposed"]
+    tr = rec.truth[run.kept]
+    ok = tr["is_signal"] & run.lifetimes["valid"] & (tr["lifetime_us"] > 0)
+    err = np.abs(run.lifetimes["lifetime_us"][ok] / tr["lifetime_us"][ok] - 1)
+    got = table.value(dataset="seq_00001", variant="proposed", metric="median_rel_error", section="all")
+    assert got == pytest.approx(np.median(err), rel=1e-12)
+    # and the task itself, run here, gives the worker's rows
+    serial = grade_sequence(GradeTask(str(path), "seq_00001", "x", tuple(METHODS), 0.02, 0, str(tmp_path / "g.json")))
+    mine = [r for r in table if r["dataset"] == "seq_00001"]
+    assert len(serial["rows"]) == len(mine)
+    for a, b in zip(serial["rows"], mine):
+        assert {k: v for k, v in a.items() if k != "value"} == {k: v for k, v in b.items() if k != "value"}
+        assert (math.isnan(a["value"]) and math.isnan(b["value"])) or a["value"] == pytest.approx(b["value"],
+                                                                                                  rel=1e-12)
 
 
 def test_rerun_reuses_grades_and_regrades_a_remade_sequence(swept, client):
@@ -116,11 +137,13 @@ def test_rerun_reuses_grades_and_regrades_a_remade_sequence(swept, client):
     other = dict(SPEC, sweep={"warmup_s": 0.02, "methods": ["acc_1ms"]})
     res = run_sweep(parse_sweep(other, "tiny.toml"), out, client=client, progress=False)
     assert (res["graded"], res["reused"]) == (4, 0)
-    assert {r["method"] for r in read_results(out / "results.csv")} == {"acc_1ms"}
+    assert read_results(out / "results.csv").unique("variant") == ["acc_1ms"]
 
 
 @pytest.mark.parametrize("sweep,key,problem", [
     ({"methods": ["proposed", "canny"]}, "sweep.methods[1]", "unknown method 'canny'"),
+    ({"methods": ["time"]}, "sweep.methods[0]", "compared as ['acc_1ms', 'acc_30ms']"),
+    ({"canny_settings": 9}, "sweep.canny_settings", "must be <= 3"),
     ({"methods": []}, "sweep.methods", "non-empty"),
     ({"warmup_s": -1}, "sweep.warmup_s", "must be >= 0"),
     ({"warmup": 1}, "sweep.warmup", "unknown key"),
