@@ -17,9 +17,11 @@ from . import __version__
 _SUBCOMMANDS = {
     "info": "evedge.io.cli:info",
     "simulate": "evedge.sim.cli:simulate",
+    "dataset": "evedge.sim.dataset_cli:dataset",
     "detect": "evedge.detector.cli:detect",
     "bench": "evedge.bench.cli:bench",
     "demo": "evedge.bench.cli:demo",
+    "grade": "evedge.bench.cli:grade",
 }
 
 
