@@ -170,6 +170,11 @@ def box_mesh(center_m, size_m, face_intensities, texture: np.ndarray | None = No
     """An axis-aligned box as 12 triangles, one flat intensity per face (order -x, +x, -y, +y, -z, +z).
 
     With ``texture``, each face carries the whole texture (times its intensity).
+
+    Examples
+    --------
+    >>> box_mesh((0, 0, 4), (1, 1, 1), (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)).corner_intensity[8:10, 0].tolist()
+    [0.5, 0.5]
     """
     from .boxes import Box3D, box_faces
 
@@ -189,15 +194,33 @@ def primitive_mesh(kind: str, size_m=(1.0, 1.0, 1.0), intensity: float | None = 
                    texture: np.ndarray | None = None) -> SceneMesh:
     """A mesh primitive centred at the origin (trimesh), with a flat intensity or a texture.
 
-    ``box`` (``size_m`` extents; the texture on every face), ``plane`` (``size_m[0] x size_m[1]``
-    in the x-y plane, facing -z, the texture once across it), ``sphere`` (diameters ``size_m``,
-    an ellipsoid) and ``cylinder`` (diameter ``size_m[0]``, ``size_m[2]`` along y... see Notes).
+    Parameters
+    ----------
+    kind : {"box", "plane", "sphere", "cylinder"}
+        ``box``: extents ``size_m``, the texture on every face; ``plane``: ``size_m[0] x size_m[1]``
+        in the x-y plane (its normal along z), the texture once across it; ``sphere``: an
+        icosphere (3 subdivisions) of diameters ``size_m`` (an ellipsoid); ``cylinder``: axis
+        along y, height ``size_m[1]``, diameters ``size_m[0]`` (x) and ``size_m[2]`` (z), 48 sides.
+    size_m : 3 floats
+    intensity : float or None
+        Flat intensity in [0, 1] (None: 1), multiplied by the texture.
+    texture : (H, W) array or None
+        Grey texture in [0, 1], e.g. from :func:`procedural_texture`.
+
+    Returns
+    -------
+    SceneMesh
 
     Notes
     -----
     Sphere and cylinder carry a texture by sampling it per triangle at the triangle centre's
     (azimuth, height) coordinates (a flat intensity per face), so their texture edges follow
     the triangulation.
+
+    Examples
+    --------
+    >>> primitive_mesh("sphere", (1.0, 1.0, 1.0), 0.5).faces.shape
+    (1280, 3)
     """
     import trimesh
 
@@ -242,6 +265,14 @@ def load_mesh_file(path) -> list[SceneMesh]:
     ------
     ValueError
         The file cannot be read or holds no triangles (the message names it).
+
+    Examples
+    --------
+    >>> import tempfile, trimesh
+    >>> path = tempfile.mkdtemp() + "/box.ply"
+    >>> _ = trimesh.creation.box((1, 1, 1)).export(path)
+    >>> [m.faces.shape for m in load_mesh_file(path)]
+    [(12, 3)]
     """
     import trimesh
 
@@ -283,7 +314,18 @@ def load_mesh_file(path) -> list[SceneMesh]:
 
 
 def scene_meshes(boxes, meshes, source: str = "<scene>") -> list[SceneMesh]:
-    """The :class:`SceneMesh` list of a mesh scene's ``[[boxes]]`` and ``[[meshes]]`` entries (parsed)."""
+    """The :class:`SceneMesh` list of a mesh scene's ``[[boxes]]`` and ``[[meshes]]`` entries (parsed).
+
+    ``boxes`` are :class:`~evedge.sim.boxes.Box3D` keyword dicts, ``meshes`` the entries of
+    :func:`evedge.sim.scene3d.parse_mesh`; file errors name ``source`` and the key.
+
+    Examples
+    --------
+    >>> m = {"primitive": "plane", "size_m": (2.0, 2.0, 1.0), "intensity": 0.3, "texture": None,
+    ...      "position_m": (0.0, 0.0, 3.0), "rotation_rpy_rad": (0.0, 0.0, 0.0), "scale": 1.0}
+    >>> [float(p.vertices_m[:, 2].max()) for p in scene_meshes([], [m])]
+    [3.0]
+    """
     out = [box_mesh(b["center_m"], b["size_m"], b["face_intensities"]) for b in boxes]
     for k, m in enumerate(meshes):
         tex = m.get("texture")
