@@ -42,7 +42,7 @@ import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
 from .renderer import GeometricTruth, Renderer
-from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction
+from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
 #: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
@@ -385,8 +385,9 @@ class EventConverter:
                 self._flow = f1
                 vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
                 vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
-            g0x, g0y = log_gradient_direction(i0.reshape(self.height, self.width), eps, x, y)
-            g1x, g1y = log_gradient_direction(i1.reshape(self.height, self.width), eps, x, y)
+            # the log only where the central differences need it (not the full frames)
+            g0x, g0y = log_gradient_direction_at(i0, eps, x, y, self.width, self.height)
+            g1x, g1y = log_gradient_direction_at(i1, eps, x, y, self.width, self.height)
             gx = (1 - w) * np.nan_to_num(g0x) + w * np.nan_to_num(g1x)
             gy = (1 - w) * np.nan_to_num(g0y) + w * np.nan_to_num(g1y)
             norm = np.hypot(gx, gy)

@@ -61,21 +61,21 @@ def gradient_direction(log_image: np.ndarray, x: np.ndarray, y: np.ndarray) -> t
         return np.where(norm > 0, gx / norm, np.nan), np.where(norm > 0, gy / norm, np.nan)
 
 
-def log_gradient_direction(image: np.ndarray, log_eps: float, x: np.ndarray, y: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`gradient_direction` of ``log(image + log_eps)``, taking the log only at the neighbours used.
+def log_gradient_direction_at(image_flat: np.ndarray, eps: float, x: np.ndarray, y: np.ndarray,
+                              width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`gradient_direction` of ``log(image + eps)`` at pixels ``(x, y)``, taking only the logs it needs.
 
-    Same values as ``gradient_direction(np.log(image + log_eps), x, y)`` (the log is elementwise)
-    without the log of the whole image: the per-event truth of a sample costs its events, not its
-    pixels.
+    ``image_flat`` is the row-major linear image. The same arithmetic as
+    ``gradient_direction(np.log(image + eps), x, y)`` element by element (the
+    same bytes), without the full-frame logarithm.
     """
-    h, w = image.shape
-    xp = np.minimum(x + 1, w - 1)
+    xp = np.minimum(x + 1, width - 1)
     xm = np.maximum(x - 1, 0)
-    yp = np.minimum(y + 1, h - 1)
+    yp = np.minimum(y + 1, height - 1)
     ym = np.maximum(y - 1, 0)
-    gx = (np.log(image[y, xp] + log_eps) - np.log(image[y, xm] + log_eps)) / np.maximum(xp - xm, 1)
-    gy = (np.log(image[yp, x] + log_eps) - np.log(image[ym, x] + log_eps)) / np.maximum(yp - ym, 1)
+    at = lambda yy, xx: np.log(image_flat[yy * width + xx] + eps)  # noqa: E731
+    gx = (at(y, xp) - at(y, xm)) / np.maximum(xp - xm, 1)
+    gy = (at(yp, x) - at(ym, x)) / np.maximum(yp - ym, 1)
     norm = np.hypot(gx, gy)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(norm > 0, gx / norm, np.nan), np.where(norm > 0, gy / norm, np.nan)
