@@ -84,7 +84,7 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     """
     sensor_size = check_sensor_size(sensor_size)
     buffered = _check_method(method, use_buffer)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     kept = filter_events(events, sensor_size, buffer_params) if buffered else np.ones(events.shape[0], bool)
     sub = events[kept] if buffered else events
     if method == "intra":
@@ -139,6 +139,7 @@ class Detector:
 
     def process(self, events: np.ndarray):
         """Feed a time-sorted chunk; return ``(released_events, lifetimes)``."""
+        events = check_events(events, self.sensor_size, name="chunk")
         if not self.use_buffer:
             return self._run(events)
         return self._run(self.buffer.process(events))
