@@ -27,6 +27,7 @@ import numpy as np
 from ..events import Frames, Recording, SensorSize, seconds_to_us
 from ._atomic import atomic_path, current_umask, make_temp_dir
 from ._checks import EventFileError, finish_events
+from .registry import Format, register_format
 
 _COLUMNS = ("t", "x", "y", "p")
 _FRAME_NAME = re.compile(r"frame_\d{8}\.png")
@@ -371,3 +372,18 @@ def _replace_tree(new: Path | None, target: Path) -> None:
         os.replace(new, target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _write_ecd_folder(path: Path, recording: Recording) -> Path:
+    if path.suffix.lower() == ".txt":
+        raise ValueError(
+            f"{path}: the Event Camera Dataset format is a folder (events.txt, images.txt, images/); "
+            f"give the folder, e.g. {path.with_suffix('')}"
+        )
+    return write_ecd(path, recording)
+
+
+register_format(Format(
+    "ecd", "Event Camera Dataset folder (events.txt [+ images.txt, images/, calib.txt])",
+    extensions=(".txt",), read=read_ecd, write=_write_ecd_folder, folder=True, holds=("frames",),
+))

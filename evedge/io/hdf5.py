@@ -24,6 +24,7 @@ import numpy as np
 from ..events import Frames, Recording, SensorSize
 from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError, finish_events, locate_index
+from .registry import Format, register_format
 
 FORMAT_NAME = "evedge"
 FORMAT_VERSION = 1
@@ -320,3 +321,10 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
             last_t = int(t[-1]) if t.size else last_t
             yield events
 
+
+
+register_format(Format(
+    "hdf5", "evedge HDF5 (events, truth, frames, edge maps, metadata)",
+    extensions=(".h5", ".hdf5"), read=read_hdf5, write=write_recording,
+    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"), holds=("frames", "truth", "edges"),
+))
