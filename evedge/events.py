@@ -304,6 +304,9 @@ class Recording:
         Exact edge maps (boolean images) with their timestamps, from the simulator.
     metadata : dict
         JSON-serialisable facts: source file, how the sensor size was found, scene, versions.
+    calibration : evedge.calibration.CameraCalibration or None
+        Intrinsics and distortion of the camera (an ECD folder's ``calib.txt``);
+        see :func:`evedge.calibration.undistort_events`.
     """
 
     events: np.ndarray
@@ -312,9 +315,15 @@ class Recording:
     truth: np.ndarray | None = None
     edges: Frames | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    calibration: Any = None
 
     def __post_init__(self) -> None:
         self.events = validate_events(self.events, self.sensor_size, name="Recording: events")
+        if self.calibration is not None:
+            from .calibration import CameraCalibration  # it imports this module
+
+            if not isinstance(self.calibration, CameraCalibration):
+                raise TypeError(f"Recording: calibration must be a CameraCalibration, got {type(self.calibration).__name__}")
         if self.truth is not None and self.truth.shape != self.events.shape:
             raise ValueError(
                 f"Recording: truth has {self.truth.shape[0]} rows but there are {self.events.shape[0]} events"
