@@ -179,3 +179,40 @@ def demo(out: Path, no_progress: bool, seed: int) -> None:
     _summary(results, t0)
     if results.get("errors"):
         sys.exit(1)
+
+
+@click.command()
+@click.argument("dataset", type=click.Path(exists=True, path_type=Path))
+@click.option("-d", "--detections", required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="evedge detect's detection.h5, or a plain layout: .h5/.hdf5/.npz with lifetime_us, vx_px_s, "
+                   "vy_px_s, kept (one value per dataset event, in its order) and/or edge_t_us + edge_images, "
+                   "or a .csv with those per-event columns.")
+@_OUT
+@click.option("--method", "method", default=None,
+              help="Name of the method in the results (default: the detection file's method, else its file name).")
+@click.option("--canny-settings", type=click.IntRange(1, 3), default=1, show_default=True,
+              help="How many Canny settings to grade the edge frames against (the first is MATLAB's 0.3).")
+def grade(dataset: Path, detections: Path, out: Path, method: str | None, canny_settings: int) -> None:
+    """Grade DETECTIONS of any method against the exact truth of DATASET.
+
+    Figures: lifetime error (median relative, p90, share estimated) per
+    section, normal-flow angle and magnitude error, noise-filter precision and
+    recall against the noise labels, CDM against the exact edges and Canny at
+    the frame times. Writes OUT/grade.csv, OUT/grade.h5 (the long table),
+    OUT/grade.json, OUT/grade.png and OUT/report.html.
+    """
+    from .grade import GradeError
+    from .grade import grade as run_grade
+
+    cmd = f"evedge grade {dataset} -d {detections} -o {out}"
+    try:
+        res = run_grade(dataset, detections, out, method=method, canny_settings=canny_settings, command=cmd)
+    except GradeError as err:
+        raise click.ClickException(str(err)) from None
+    table = res["table"]
+    for r in table.query(section="all"):
+        if r["metric"] in ("median_rel_error", "p90_rel_error", "share_estimated", "median_angle_error_deg",
+                           "median_rel_magnitude_error", "noise_precision", "noise_recall", "median_cdm"):
+            click.echo(f"  {r['metric']:<28s} {r['reference']:<18s} {r['value']:.4g}")
+    click.echo(f"{len(table)} rows -> {res['files'][0]}")
+    click.echo(f"report: {Path(res['report']).resolve()}")

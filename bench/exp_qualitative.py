@@ -17,7 +17,8 @@ import numpy as np
 from ._files import save_figure, write_json_atomic
 from ._plot import pyplot
 from .canny import CANNY_SETTINGS, canny_edges
-from .methods import DISPLAY_LABELS, METHOD_LABELS, PRIMARY_DISPLAY, edge_maps, method_key
+from .methods import DISPLAY_LABELS, PRIMARY_DISPLAY, edge_maps, method_key
+from .methods import label as method_label
 
 #: Result keys of the panel's columns: the lifetime methods under the primary display policy.
 PANEL_METHODS = (method_key("proposed", PRIMARY_DISPLAY), method_key("mueggler", PRIMARY_DISPLAY),
@@ -82,7 +83,7 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
             ax.set_xticks([])
             ax.set_yticks([])
             if r == 0:
-                label = {"grey": "grey frame", "canny": "Canny (MATLAB 0.3)"}.get(col, METHOD_LABELS.get(col, col))
+                label = {"grey": "grey frame", "canny": "Canny (MATLAB 0.3)"}.get(col) or method_label(col)
                 ax.set_title(label, fontsize=8)
             if c == 0:
                 ax.set_ylabel(row["title"], fontsize=7)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ._files import write_text_atomic
-from .methods import METHOD_LABELS
+from .methods import label as method_label
 
 _CSS = """
 body{font-family:system-ui,sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222}
@@ -195,7 +195,7 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
             stxt = "; ".join(f"{p['mode'] / 1e3:.2f} ms {p['kind']} (FWHM-eq {p['fwhm_log10']:.3f} dec, "
                              f"{100 * p['fraction']:.0f}%)" for p in res.get("shoulder_peaks") or [])
             share = res.get("share_estimated")
-            rows.append([_e(ds), _e(METHOD_LABELS.get(m, m)), _num(res.get("median_lifetime_us", np.nan) / 1e3
+            rows.append([_e(ds), _e(method_label(m)), _num(res.get("median_lifetime_us", np.nan) / 1e3
                                                                   if res.get("median_lifetime_us") is not None
                                                                   else None, 2),
                          _num(None if share is None else 100 * share, 1),
@@ -225,9 +225,9 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
     for ds, per in lt.items():
         items = []
         for m, res in per.items():
-            items += [(reg, METHOD_LABELS.get(m, m), q) for reg, q in (res.get("regions") or {}).items()]
+            items += [(reg, method_label(m), q) for reg, q in (res.get("regions") or {}).items()]
             diag = (res.get("on_buffered_events") or {}).get("regions") or {}
-            items += [(reg, f"{METHOD_LABELS.get(m, m)} on the event buffer's output (diagnostic)", q)
+            items += [(reg, f"{method_label(m)} on the event buffer's output (diagnostic)", q)
                       for reg, q in diag.items()]
         for reg, label, q in items:
             rrows.append([_e(ds), _e(reg), _e(label), _e(q["n_events"]),
@@ -256,7 +256,7 @@ def _cdm_section(cdm: dict) -> str:
             for m, res in per_method.items():
                 cells = [f"{_num(res[s]['median'], 1)} [{_num(res[s]['q1'], 1)}, {_num(res[s]['q3'], 1)}] "
                          f"({res[s]['n']})" for s in sections]
-                rows.append([_e(METHOD_LABELS.get(m, m))] + cells + [_num(res["all"]["median"], 1)])
+                rows.append([_e(method_label(m))] + cells + [_num(res["all"]["median"], 1)])
             parts.append(f"<h3>{_e(scene)} vs {_e(truth)}</h3>" + _table(header, rows))
     return "".join(parts)
 
@@ -266,7 +266,7 @@ def _diagnostics_section(diag: dict) -> str:
     for scene, d in diag.items():
         for ref, per in (d.get("pixel_ratio") or {}).items():
             sections = [s for s in next(iter(per.values()))]
-            rows = [[_e(METHOD_LABELS.get(m, m))] + [_num(v.get(s), 2) for s in sections] for m, v in per.items()]
+            rows = [[_e(method_label(m))] + [_num(v.get(s), 2) for s in sections] for m, v in per.items()]
             parts.append(f"<h3>{_e(scene)}: edge pixels per pixel of {_e(ref)} (mean per section)</h3>"
                          + _table(["method"] + sections, rows))
         lt = d.get("lifetime") or {}
@@ -274,7 +274,7 @@ def _diagnostics_section(diag: dict) -> str:
             rows = []
             for m, per in lt.items():
                 for s, v in per.items():
-                    rows.append([_e(METHOD_LABELS.get(m, m)), _e(s), _e(v["n_signal"]), _num(100 * v["coverage"], 1),
+                    rows.append([_e(method_label(m)), _e(s), _e(v["n_signal"]), _num(100 * v["coverage"], 1),
                                  _num(v["median_rel_error"], 3), _num(100 * v["over_2x"], 1),
                                  _num(100 * v["under_2x"], 1)])
             parts.append(f"<h3>{_e(scene)}: lifetimes against the simulator's truth</h3>"
@@ -290,7 +290,7 @@ def _real_section(real: dict, frames: dict) -> str:
         refs = list(next(iter(per_method.values()))["cdm_per_frame"])
         for ref in refs:
             header = ["method"] + [f"t={float(x) / 1e3:.1f} ms" for x in t] + ["median"]
-            rows = [[_e(METHOD_LABELS.get(m, m))] + [_num(v, 1) for v in res["cdm_per_frame"][ref]]
+            rows = [[_e(method_label(m))] + [_num(v, 1) for v in res["cdm_per_frame"][ref]]
                     + [_num(res["median"][ref], 1)] for m, res in per_method.items()]
             parts.append(f"<h3>{_e(rec)} vs {_e(ref)}</h3>" + _table(header, rows))
     return "".join(parts)

@@ -28,6 +28,8 @@ import numpy as np
 
 from evedge.events import SensorSize, find_time_decrease, validate_events
 
+from .protocols import METHODS
+
 __all__ = [
     "accumulate_time",
     "accumulate_count",
@@ -247,3 +249,29 @@ class CountWindowAccumulator(_Streaming):
         image = np.zeros(self.sensor_size.shape, dtype=bool)
         image[self._y, self._x] = True
         return image
+
+
+def _time_registered(sensor_size, *, window_us: int = 30_000) -> TimeWindowAccumulator:
+    """Factory of the method registry: ``TimeWindowAccumulator(sensor_size, window_us)``."""
+    return TimeWindowAccumulator(sensor_size, window_us)
+
+
+def _count_registered(sensor_size, *, n_events: int = 2000) -> CountWindowAccumulator:
+    """Factory of the method registry: ``CountWindowAccumulator(sensor_size, n_events)``."""
+    return CountWindowAccumulator(sensor_size, n_events)
+
+
+def _time_frames(events, sensor_size, times_us, *, window_us: int = 30_000) -> np.ndarray:
+    """One-shot frames of the registry entry ``time``: :func:`accumulate_time`."""
+    return accumulate_time(events, sensor_size, times_us, window_us)
+
+
+def _count_frames(events, sensor_size, times_us, *, n_events: int = 2000) -> np.ndarray:
+    """One-shot frames of the registry entry ``count``: :func:`accumulate_count`."""
+    return accumulate_count(events, sensor_size, times_us, n_events)
+
+
+METHODS.register("time", _time_registered, kind="edges", display_name="fixed-time accumulation", colour="#2ca02c",
+                 frames=_time_frames)
+METHODS.register("count", _count_registered, kind="edges", display_name="fixed-count accumulation",
+                 colour="#7f7f7f", frames=_count_frames)

@@ -36,6 +36,7 @@ from evedge.events import EVENT_DTYPE
 
 from ._buffer_kernels import _buffer_scan, _n_decided
 from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
+from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
 
@@ -190,3 +191,17 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
                  np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
                  np.full(2 * w * h, -1, dtype=np.int64), w, h, params.tau_min_us, params.mode == "causal")
     return supported
+
+
+def _registered(sensor_size, **params) -> EventBuffer:
+    """Factory of the method registry: ``EventBuffer(sensor_size, BufferParams(**params))``."""
+    return EventBuffer(sensor_size, BufferParams(**params))
+
+
+def _keep_mask(events: np.ndarray, sensor_size, **params) -> np.ndarray:
+    """One-shot keep mask of the registry entry: :func:`filter_events`."""
+    return filter_events(events, sensor_size, BufferParams(**params))
+
+
+METHODS.register("buffer", _registered, kind="filter", display_name="event buffer (noise filter)", colour="#8c564b",
+                 params=BufferParams, keep_mask=_keep_mask)

@@ -21,6 +21,7 @@ _SUBCOMMANDS = {
     "detect": "evedge.detector.cli:detect",
     "bench": "evedge.bench.cli:bench",
     "demo": "evedge.bench.cli:demo",
+    "grade": "evedge.bench.cli:grade",
 }
 
 

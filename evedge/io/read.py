@@ -68,4 +68,34 @@ def read_events(
             raise ValueError(f"read_events: {err}") from None
         if not path.exists():
             raise EventFileError(f"{path}: no such file or directory")
+    if format == "hdf5":
+        # an evedge detect output is HDF5 too; its reader lives beside the detection file format
+        from .detection import is_detection_file
+
+        if is_detection_file(path):
+            return _detection_recording(path, sensor_size, bool(sort))
     return get_format(format).read(path, sensor_size=sensor_size, sort=bool(sort))
+
+
+def _detection_recording(path: Path, sensor_size, sort: bool) -> Recording:
+    """The events of an ``evedge detect`` output file, with its edge frames and metadata."""
+    from ..events import sort_events
+    from .detection import read_detection
+
+    det = read_detection(path)
+    if sensor_size is not None and sensor_size != det.sensor_size:
+        raise EventFileError(f"{path}: the file says sensor {det.sensor_size.width}x{det.sensor_size.height}, "
+                             f"sensor_size={sensor_size.width}x{sensor_size.height} was given")
+    if det.events is None:
+        src = det.metadata.get("source", {})
+        raise EventFileError(f"{path}: this detection file holds no events, only the digest of its source "
+                             f"{src.get('path')!r} (sha256 {src.get('sha256')}); read that file instead")
+    events = det.events
+    meta = dict(det.metadata, source=str(path), format="evedge-detection", sensor_size_from="file attributes",
+                detection_source=det.metadata.get("source"))
+    if sort:
+        import numpy as np
+
+        meta["sorted_on_load"] = bool(np.any(np.diff(events["t"]) < 0))
+        events = sort_events(events)
+    return Recording(events, det.sensor_size, edges=det.edges, metadata=meta)
