@@ -17,6 +17,7 @@ from . import __version__
 _SUBCOMMANDS = {
     "info": "evedge.io.cli:info",
     "convert": "evedge.io.cli:convert",
+    "render": "evedge.video_cli:render",
     "simulate": "evedge.sim.cli:simulate",
     "detect": "evedge.detector.cli:detect",
     "bench": "evedge.bench.cli:bench",
