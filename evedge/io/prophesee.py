@@ -201,10 +201,13 @@ def read_evt2(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
     path = Path(path)
     start, fields = parse_header(path)
     version = header_version(fields)
-    if version not in (None, "evt2", "evt2.1"):
+    if version == "evt2.1":
+        # faery 0.7.1 panics on it ("not yet implemented: implement EVT2.1")
+        raise EventFileError(f"{path}: EVT 2.1 files are not supported (no maintained decoder installs here)")
+    if version not in (None, "evt2"):
         raise EventFileError(f"{path}: the header says {version}, not EVT 2; read it with format={version!r}")
-    return _read_faery(path, sensor_size, sort, label="EVT 2", fmt="evt2", file_type="evt", version=version or "evt2",
-                       start=start, fields=fields, word_bytes=4 if version != "evt2.1" else 8)
+    return _read_faery(path, sensor_size, sort, label="EVT 2", fmt="evt2", file_type="evt", version="evt2",
+                       start=start, fields=fields, word_bytes=4)
 
 
 def read_dat(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:

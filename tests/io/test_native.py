@@ -50,3 +50,16 @@ def test_truncated_aedat4_files_are_event_file_errors(tmp_path):
         bad.write_bytes(bytes(data[:cut]))
         with pytest.raises(EventFileError, match="bad.aedat4"):
             read_events(bad)
+
+
+def test_a_real_rust_panic_is_wrapped(tmp_path):
+    # faery 0.7.1 panics ("not yet implemented") on EVT 2.1 data: pyo3's PanicException, a BaseException
+    pytest.importorskip("faery")
+    from evedge.io._native import faery_decode
+
+    path = tmp_path / "a.raw"
+    path.write_bytes(b"% evt 2.1\n% geometry 40x6\n" + bytes(range(16)))
+    with pytest.raises(EventFileError, match=r"a.raw: EVT 2.1 data cannot be decoded.*not yet implemented"):
+        faery_decode(path, "EVT 2.1", "evt", dimensions=(40, 6), version="evt2.1")
+    with pytest.raises(EventFileError, match=r"a.raw: EVT 2.1 files are not supported"):
+        read_events(path)
