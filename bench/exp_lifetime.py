@@ -244,7 +244,7 @@ def _as_lifetimes(t: np.ndarray) -> np.ndarray:
 
 def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: int = 0,
                  real_path=None, sim_duration_s: float | None = None, datasets=("stripes_real", "stripes_sim"),
-                 recordings: dict | None = None) -> dict:
+                 recordings: dict | None = None, data_dir=None) -> dict:
     """Lifetime histograms, accumulated lifetime images and errors on the stripes data.
 
     Parameters
@@ -262,6 +262,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         Which of ``stripes_real`` and ``stripes_sim`` to run.
     recordings : dict, optional
         Precomputed recordings by dataset name (skips reading/simulating).
+    data_dir : path, optional
+        Folder of the real recordings (default ``$EVEDGE_DATA``, else ``../shared/realdata``).
 
     Returns
     -------
@@ -270,6 +272,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         "truth": {...}}}, "figures": [...]}``
     """
     out_dir = Path(out_dir)
+    if real_path is None and data_dir is not None:
+        real_path = default_realdata_dir(data_dir) / "rpg_event_lifetime" / "stripes.mat"
     recordings = dict(recordings or {})
     results, figures, rows, region_rows, skipped = {}, [], [], [], {}
     for name in datasets:

@@ -25,8 +25,17 @@ from .methods import (ACCUMULATION_METHODS, DISPLAY_LABELS, DISPLAYS, PRIMARY_DI
                       colour, compared, display_record, edge_maps, label, methods_for)
 
 #: Where the shared real recordings live, relative to the repository (``../shared/realdata``).
-def default_realdata_dir() -> Path:
-    """``<repo>/../shared/realdata`` (the repository sits beside ``shared/``)."""
+def default_realdata_dir(data_dir=None) -> Path:
+    """Folder of the real recordings: ``data_dir``, else ``$EVEDGE_DATA``, else ``<repo>/../shared/realdata``.
+
+    The last is where a repository checkout finds them (it sits beside ``shared/``).
+    """
+    import os
+
+    if data_dir is not None:
+        return Path(data_dir)
+    if os.environ.get("EVEDGE_DATA"):
+        return Path(os.environ["EVEDGE_DATA"])
     return Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 
 
@@ -52,7 +61,7 @@ def count_for(references: dict[str, np.ndarray]) -> int:
 
 
 def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, name: str = "slider_depth",
-             keep_maps: bool = False, displays=DISPLAYS, methods_extra=()) -> dict:
+             keep_maps: bool = False, displays=DISPLAYS, methods_extra=(), data_dir=None) -> dict:
     """CDM against Canny at the real frames inside the events.
 
     Parameters
@@ -73,6 +82,8 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     methods_extra : sequence of str
         Other registered methods (or ``package.module:factory``) compared beside
         the paper's (see :func:`evedge.bench.methods.add_method`).
+    data_dir : path, optional
+        Folder of the real recordings (see :func:`default_realdata_dir`).
 
     Returns
     -------
@@ -85,7 +96,7 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
 
     displays = check_displays(displays, "run_real")
     out_dir = Path(out_dir)
-    path = Path(path) if path is not None else default_realdata_dir() / "slider_depth"
+    path = Path(path) if path is not None else default_realdata_dir(data_dir) / "slider_depth"
     if not path.exists():
         raise FileNotFoundError(f"run_real: recording not found: {path}")
     rec = read_events(path)

@@ -34,18 +34,56 @@ WARMUP_US = 30_000
 
 
 def scenes_dir() -> Path:
-    """The repository's ``scenes/`` directory."""
-    return Path(__file__).resolve().parents[1] / "scenes"
+    """The shipped scenes: the package data ``evedge.scenes`` (the repository's ``scenes/``)."""
+    from importlib.resources import files
+
+    try:
+        return Path(str(files("evedge.scenes")))
+    except ModuleNotFoundError:  # an old editable install that predates the package data
+        return Path(__file__).resolve().parents[1] / "scenes"
 
 
-def simulate_scene(name: str, *, seed: int = 0, duration_s: float | None = None,
+def shipped_scenes() -> tuple[str, ...]:
+    """Names of the shipped scenes (``shapes_translation``, ``stripes``, ...)."""
+    return tuple(sorted(p.stem for p in scenes_dir().glob("*.toml")))
+
+
+def scene_path(scene) -> Path:
+    """The TOML file of a scene given by shipped name (``stripes``) or by path (``my/scene.toml``).
+
+    Raises
+    ------
+    FileNotFoundError
+        Naming the scene and the shipped ones.
+    """
+    text = str(scene)
+    if text.endswith(".toml") or "/" in text or isinstance(scene, Path):
+        path = Path(scene)
+        if not path.is_file():
+            raise FileNotFoundError(f"scene file not found: {path}")
+        return path
+    path = scenes_dir() / f"{text}.toml"
+    if not path.is_file():
+        raise FileNotFoundError(f"no shipped scene {text!r} (in {scenes_dir()}); shipped: "
+                                f"{', '.join(shipped_scenes()) or 'none'}; or give a path to a .toml file")
+    return path
+
+
+def scene_label(scene) -> str:
+    """The name a scene goes by in results: its shipped name or its file's stem."""
+    return Path(str(scene)).stem if str(scene).endswith(".toml") else str(scene)
+
+
+def simulate_scene(name, *, seed: int = 0, duration_s: float | None = None,
                    frame_rate_hz: float | None = None, progress: bool = True):
-    """Load ``scenes/<name>.toml`` and simulate it (events, truth, frames, exact edges)."""
+    """Load a scene (shipped name or TOML path, see :func:`scene_path`) and simulate it (events, truth,
+    frames, exact edges)."""
     from evedge.sim import load_scene, simulate
 
-    path = scenes_dir() / f"{name}.toml"
-    if not path.exists():
-        raise FileNotFoundError(f"simulate_scene: scene file not found: {path}")
+    try:
+        path = scene_path(name)
+    except FileNotFoundError as err:
+        raise FileNotFoundError(f"simulate_scene: {err}") from None
     kwargs = {"seed": seed, "duration_s": duration_s, "progress": progress}
     if frame_rate_hz is not None:
         kwargs["frame_rate_hz"] = frame_rate_hz
@@ -97,7 +135,7 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         A simulated recording with ``frames`` and ``edges``; simulated from
         ``scene`` when not given.
     scene : str
-        Scene name in ``scenes/`` (default ``shapes_translation``).
+        A shipped scene's name (default ``shapes_translation``) or a scene TOML file.
     quick : bool
         Only the first Canny setting and at most 24 frames (evenly spread).
     progress : bool
@@ -130,6 +168,7 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
     out_dir = Path(out_dir)
     rec = recording if recording is not None else simulate_scene(
         scene, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=progress)
+    scene = scene_label(scene)
     if rec.frames is None:
         raise ValueError("run_similarity: the recording has no grey frames")
     t_first = int(rec.events["t"][0]) if rec.events.size else 0

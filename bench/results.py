@@ -166,3 +166,128 @@ def read_results(path: str | os.PathLike) -> ResultsTable:
             except ValueError as err:
                 raise ValueError(f"{path}: line {line}: {err}") from None
         return table
+
+
+# -- the paper experiments' numbers as rows ------------------------------------------------------
+def _method_columns(key: str) -> dict:
+    """method (registry name), variant (result key) and display of a compared method's result key."""
+    from .methods import COMPARED
+
+    c = COMPARED.get(key)
+    if c is None:
+        return {"method": key, "variant": key, "display": ""}
+    return {"method": c.method, "variant": key, "display": c.display or ""}
+
+
+def _number(v):
+    if isinstance(v, bool):
+        return float(v)
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return float(v)
+    if v is None:
+        return math.nan
+    return None
+
+
+def cdm_rows(experiment: str, dataset: str, cdm: Mapping) -> list[dict]:
+    """``cdm[truth][result key][section] = summary`` -> rows ``cdm_<stat>`` (median, q1, q3, mean, n)."""
+    rows = []
+    for ref, per in cdm.items():
+        for key, sections in per.items():
+            for section, summary in sections.items():
+                for stat, v in summary.items():
+                    rows.append({"experiment": experiment, "dataset": dataset, "reference": ref,
+                                 **_method_columns(key), "section": section, "metric": f"cdm_{stat}",
+                                 "value": _number(v)})
+    return rows
+
+
+def real_rows(recording: str, per_method: Mapping) -> list[dict]:
+    """``real[recording][result key] = {cdm_per_frame: {ref: [...]}, median: {ref: v}}`` -> rows."""
+    rows = []
+    for key, r in per_method.items():
+        for ref, values in (r.get("cdm_per_frame") or {}).items():
+            for i, v in enumerate(values):
+                rows.append({"dataset": recording, "reference": ref, **_method_columns(key), "section": f"frame_{i}",
+                             "metric": "cdm", "value": _number(v)})
+        for ref, v in (r.get("median") or {}).items():
+            rows.append({"dataset": recording, "reference": ref, **_method_columns(key), "section": "all",
+                         "metric": "cdm_median", "value": _number(v)})
+    return rows
+
+
+def lifetime_rows(lifetime: Mapping) -> list[dict]:
+    """``lifetime[dataset][method] = {scalars, regions: {region: {scalars}}}`` -> rows (section: region or all)."""
+    rows = []
+    for ds, per in lifetime.items():
+        for key, res in per.items():
+            if key == "truth" or not isinstance(res, Mapping):
+                continue
+            method = {"proposed": "intra"}.get(key, key)
+            variant = key
+            if key.endswith("_on_buffer"):
+                method = key[: -len("_on_buffer")]
+            base = {"dataset": ds, "reference": "truth" if "median_rel_error" in res else "",
+                    "method": method, "variant": variant}
+            for metric, v in res.items():
+                num = _number(v)
+                if num is not None:
+                    rows.append({**base, "section": "all", "metric": metric, "value": num})
+            for group in ("regions", "regions_core"):
+                for region, q in (res.get(group) or {}).items():
+                    for metric, v in (q or {}).items():
+                        num = _number(v)
+                        if num is not None:
+                            rows.append({**base, "section": region if group == "regions" else f"{region}_core",
+                                         "metric": metric, "value": num})
+    return rows
+
+
+def ransac_rows(fmeasure: Mapping) -> list[dict]:
+    """``fmeasure[noise kind][variant] = {noise_px: [...], <metric>: [...]}`` -> one row per noise level."""
+    rows = []
+    for kind, per in fmeasure.items():
+        for variant, r in per.items():
+            levels = r.get("noise_px") or []
+            for metric, values in r.items():
+                if metric in ("noise_px",) or not isinstance(values, (list, tuple)) or len(values) != len(levels):
+                    continue
+                for level, v in zip(levels, values):
+                    num = _number(v)
+                    if num is not None:
+                        rows.append({"dataset": f"synthetic windows, {kind} noise", "reference": "true inliers",
+                                     "method": "intra", "variant": variant, "section": f"noise_{level}",
+                                     "metric": metric, "value": num})
+    return rows
+
+
+def leaderboard(table: ResultsTable, *, metric: str = "cdm_median", experiments=("similarity", "real"),
+                display: str | None = None) -> dict:
+    """Median CDM per method (rows) x (dataset, section, truth) (columns), and the winner of each column.
+
+    Only the primary display's rows of lifetime methods (or ``display``) and
+    non-diagnostic methods enter; a winner is the highest value of its column.
+
+    Returns
+    -------
+    dict
+        ``{"columns": [(dataset, section, reference)], "rows": [(variant, [values])],
+        "winners": {column: variant}}``.
+    """
+    from .methods import COMPARED, PRIMARY_DISPLAY
+
+    display = display or PRIMARY_DISPLAY
+    picked = [r for r in table.rows if r["experiment"] in experiments and r["metric"] == metric
+              and r["display"] in ("", display) and not (r["variant"] in COMPARED and COMPARED[r["variant"]].diagnostic)
+              and r["section"] in ("slow", "fast", "all")]
+    cols = list(dict.fromkeys((r["dataset"], r["section"], r["reference"]) for r in picked
+                              if not (r["experiment"] == "similarity" and r["section"] == "all")))
+    variants = list(dict.fromkeys(r["variant"] for r in picked))
+    cell = {(r["variant"], (r["dataset"], r["section"], r["reference"])): r["value"] for r in picked}
+    rows = [(v, [cell.get((v, c), math.nan) for c in cols]) for v in variants]
+    winners = {}
+    for j, c in enumerate(cols):
+        vals = [(row[1][j], row[0]) for row in rows if math.isfinite(row[1][j])]
+        if vals:
+            winners[c] = max(vals)[1]
+    return {"columns": cols, "rows": rows, "winners": winners}
