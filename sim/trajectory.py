@@ -356,7 +356,8 @@ def imu(trajectory, t_s, gravity_m_s2=GRAVITY_M_S2) -> tuple[np.ndarray, np.ndar
 def imu_table(trajectory, rate_hz: float, duration_s: float, gravity_m_s2=GRAVITY_M_S2) -> np.ndarray:
     """IMU truth at ``k / rate_hz`` for ``k = 0, 1, ...`` up to ``duration_s``, as :data:`IMU_DTYPE` rows.
 
-    Times are rounded to whole microseconds first and the readings taken at those times.
+    Times are rounded to whole microseconds first and the readings taken at those times (at
+    ``duration_s`` for a last time rounded past it).
 
     Examples
     --------
@@ -370,7 +371,8 @@ def imu_table(trajectory, rate_hz: float, duration_s: float, gravity_m_s2=GRAVIT
         raise ValueError(f"imu_table: rate_hz must be > 0 and duration_s >= 0, got {rate_hz}, {duration_s}")
     n = int(math.floor(duration_s * rate_hz + 1e-9)) + 1
     t_us = np.rint(np.arange(n) / rate_hz * 1e6).astype(np.int64)
-    gyro, acc = imu(trajectory, t_us * 1e-6, gravity_m_s2)
+    # a time rounded up past the end (duration_s not whole microseconds) is read at the end
+    gyro, acc = imu(trajectory, np.minimum(t_us * 1e-6, duration_s), gravity_m_s2)
     out = np.empty(n, dtype=IMU_DTYPE)
     out["t_us"] = t_us
     for k, axis in enumerate("xyz"):

@@ -109,3 +109,13 @@ def test_keyframe_time_range_is_checked():
         kt.position(1.5)
     with pytest.raises(ValueError, match="outside the keyframes"):
         kt.kinematics(np.array([0.5, -0.1]))
+
+
+def test_imu_table_never_reads_past_the_keyframes():
+    # keyframes end at 10000.6 us; the second IMU time 10000.55 us rounds up to 10001 us, past the end:
+    # it is read at the end instead of raising
+    kt = KeyframeTrajectory([0.0, 0.0100006], [[0, 0, 0], [0.01, 0, 0]], [np.eye(3), np.eye(3)])
+    rows = imu_table(kt, 1.0 / 0.01000055, 0.0100006)
+    assert rows["t_us"].tolist() == [0, 10001] and np.isfinite(rows["ax_m_s2"]).all()
+    with pytest.raises(ValueError, match="outside the keyframes"):
+        imu(kt, [0.010001])
