@@ -85,15 +85,17 @@ def glob_escape(name: str) -> str:
 
 
 @contextmanager
-def atomic_path(target: Path) -> Iterator[Path]:
+def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
     """Yield a temp path beside ``target``; on success rename it to ``target``.
 
     On any exception the temp file is removed and ``target`` is untouched.
-    The temp name starts with a dot and ends in ``.tmp``; temp files of
-    killed writers of the same target are removed first.
+    The temp name starts with a dot and ends in ``suffix`` (``.tmp``; a
+    writer that picks its container by extension, as OpenCV's video writer
+    does, passes e.g. ``".tmp.mp4"``); temp files of killed writers of the
+    same target are removed first.
     """
     remove_stale_temps(target)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=temp_prefix(target), suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=temp_prefix(target), suffix=suffix)
     os.close(fd)
     try:
         yield Path(tmp)

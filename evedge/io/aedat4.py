@@ -21,6 +21,8 @@ import numpy as np
 from ..events import Frames, Recording, SensorSize
 from ._checks import EventFileError, finish_events, locate_index
 from ._isolated import DecoderError, run_isolated
+from ._native import is_decoder_failure
+from .registry import Format, register_format
 
 
 def _decode(path: Path, sensor_size: SensorSize | None):
@@ -30,10 +32,10 @@ def _decode(path: Path, sensor_size: SensorSize | None):
     try:
         decoder = aedat.Decoder(str(path))
         streams = decoder.id_to_stream()
-    except BaseException as err:  # noqa: BLE001 - pyo3's PanicException is a BaseException
-        if isinstance(err, (KeyboardInterrupt, SystemExit, MemoryError)):
+    except BaseException as err:  # a pyo3 PanicException is a BaseException
+        if not is_decoder_failure(err):
             raise
-        raise EventFileError(f"{path}: not a readable AEDAT4 file: {err}") from err
+        raise EventFileError(f"{path}: not a readable AEDAT4 file: {err}") from None
     event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
     if not event_ids:
         kinds = sorted({s.get("type", "?") for s in streams.values()})
@@ -69,10 +71,10 @@ def _decode(path: Path, sensor_size: SensorSize | None):
             else:
                 key = next((k for k in content if k != "stream_id"), "?")
                 skipped[key] = skipped.get(key, 0) + 1
-    except BaseException as err:  # noqa: BLE001 - pyo3's PanicException is a BaseException
-        if isinstance(err, (KeyboardInterrupt, SystemExit, MemoryError)):
+    except BaseException as err:  # a pyo3 PanicException is a BaseException
+        if not is_decoder_failure(err) or isinstance(err, MemoryError):
             raise
-        raise EventFileError(f"{path}: AEDAT4 packet {packet + 1} cannot be decoded (truncated or corrupt file?): {err}") from err
+        raise EventFileError(f"{path}: AEDAT4 packet {packet + 1} cannot be decoded (truncated or corrupt file?): {err}") from None
     return file_size, sid, chunks, frame_t, frame_images, skipped
 
 
@@ -133,3 +135,40 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
     if was_sorted:
         metadata["sorted_on_load"] = True
     return Recording(events, file_size, frames=frames, metadata=metadata)
+
+
+def write_aedat4(path: str | os.PathLike, recording: Recording) -> Path:
+    """Write the events of ``recording`` as AEDAT 4 (one LZ4-compressed event stream) through faery.
+
+    Frames are not written: faery 0.7.1's encoder cannot build frame packets
+    from Python. Atomic (temp file, then rename).
+
+    Parameters
+    ----------
+    path : path-like
+    recording : Recording
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        Negative coordinates or timestamps (AEDAT 4 stores them unsigned), or an encoder failure.
+
+    Examples
+    --------
+    >>> from evedge.io import read_events, write_aedat4
+    >>> write_aedat4("out.aedat4", read_events("slider_depth"))  # doctest: +SKIP
+    """
+    from ._native import faery_encode
+
+    return faery_encode(Path(path), recording, "AEDAT 4", "aedat", who="write_aedat4")
+
+
+register_format(Format(
+    "aedat4", "AEDAT 4 (iniVation DV): events and 8-bit frames (written: events)",
+    extensions=(".aedat4",), read=read_aedat4, write=write_aedat4,
+    sniff=lambda head: head.startswith(b"#!AER-DAT4.0"),
+))

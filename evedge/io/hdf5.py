@@ -6,7 +6,10 @@ Layout (``format="evedge"``, ``format_version=2``)::
     /truth/<field>              one dataset per field of the structured truth (optional)
     /frames/{t_us, images}      int64, (n, height, width) uint8 or float in [0, 1] (optional)
     /edges/{t_us, images}       int64, (n, height, width) bool (optional)
+    /maps/<name>/{t_us, images} per-frame maps (depth, flow, ...), numbers (optional)
+    /imu/<field>                1-D columns of one length, t_us among them (optional)
     attrs: format, format_version, sensor_width, sensor_height, metadata (JSON),
+           calibration (9 floats, optional),
            checksums (JSON: sha256 of every dataset and of the other attributes)
 
 Writes are byte-for-byte deterministic: no timestamps (``track_times=False``),
@@ -35,9 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from .._resources import memory_shortfall
+from ..calibration import CameraCalibration
 from ..events import Frames, Recording, SensorSize
 from ._atomic import check_output_file, write_hdf5_atomic
 from ._checks import EventFileError, finish_events, locate_index
+from .registry import Format, register_format
 
 FORMAT_NAME = "evedge"
 FORMAT_VERSION = 2  # 2: checksums; version 1 files had none and are refused
@@ -105,6 +110,9 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
         f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
         f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
         f.attrs["metadata"] = metadata
+        if recording.calibration is not None:
+            # fx fy cx cy k1 k2 p1 p2 k3, as in calib.txt
+            f.attrs["calibration"] = np.asarray(recording.calibration.as_list(), dtype=np.float64)
         ev = recording.events
         group = f.create_group("events", track_order=True)
         chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
@@ -122,6 +130,14 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
             _write_stack(f, "frames", recording.frames)
         if recording.edges is not None:
             _write_stack(f, "edges", recording.edges)
+        if recording.maps:
+            group = f.create_group("maps", track_order=True)
+            for name, stack in recording.maps.items():
+                _write_stack(group, name, stack)
+        if recording.imu is not None:
+            group = f.create_group("imu", track_order=True)
+            for name in recording.imu.dtype.names:
+                _dataset(group, name, np.ascontiguousarray(recording.imu[name]), (max(1, min(recording.imu.size, 4096)),))
         seal(f)
 
     return write_hdf5_atomic(path, fill)
@@ -130,7 +146,7 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
 #: gzip cannot expand data more than about 1032 times; a chunked, compressed dataset
 #: declaring more bytes than this many times what it stores is lying.
 _MAX_EXPANSION = 1100
-_ATTRS = ("format", "format_version", "sensor_width", "sensor_height", "metadata")
+_ATTRS = ("format", "format_version", "sensor_width", "sensor_height", "metadata", "calibration")
 _HASH_BLOCK = 1 << 20  # rows hashed per read when streaming
 
 
@@ -368,21 +384,27 @@ def _check_t(path: Path, t: np.ndarray, start: int = 0) -> None:
         raise EventFileError(f"{path}: {locate_index(start + i)}: 'events/t' = {int(t[i])} exceeds int64 microseconds")
 
 
-def _stack_datasets(f, path: Path, name: str):
+def _stack_datasets(f, path: Path, name: str, kind: str | None = None):
+    """The ``t_us`` and ``images`` datasets of stack ``name`` (kind: frames, edges or map), dtypes checked."""
     if name not in f:
         return None
+    kind = kind or name
     group = _group(f, path, name)
+    full = group.name.strip("/")
     t_us, images = (_dataset_in(group, path, part) for part in ("t_us", "images"))
     if t_us.dtype.kind not in "iu":
-        raise EventFileError(f"{path}: dataset '{name}/t_us' has dtype {t_us.dtype}, expected integer microseconds")
-    wanted = ("b",) if name == "edges" else ("u1", "f4", "f8")
-    if images.dtype.kind + (str(images.dtype.itemsize) if images.dtype.kind != "b" else "") not in wanted:
-        expect = "bool edge maps" if name == "edges" else "uint8 or float32/float64 frames"
-        raise EventFileError(f"{path}: dataset '{name}/images' has dtype {images.dtype}, expected {expect}")
+        raise EventFileError(f"{path}: dataset '{full}/t_us' has dtype {t_us.dtype}, expected integer microseconds")
+    code = images.dtype.kind + (str(images.dtype.itemsize) if images.dtype.kind != "b" else "")
+    wanted = {"edges": ("b",), "frames": ("u1", "f4", "f8")}.get(kind)
+    ok = code in wanted if wanted else images.dtype.kind in "biuf"
+    if not ok:
+        expect = {"edges": "bool edge maps", "frames": "uint8 or float32/float64 frames"}.get(kind, "numbers")
+        raise EventFileError(f"{path}: dataset '{full}/images' has dtype {images.dtype}, expected {expect}")
     return t_us, images
 
 
-def _stack(path: Path, name: str, t_us: np.ndarray, images: np.ndarray, sensor: SensorSize) -> Frames:
+def _stack(path: Path, name: str, t_us: np.ndarray, images: np.ndarray, sensor: SensorSize,
+           kind: str | None = None) -> Frames:
     if t_us.dtype == np.uint64 and t_us.size and int(t_us.max()) > np.iinfo(np.int64).max:
         raise EventFileError(f"{path}: '{name}/t_us' exceeds int64 microseconds")
     try:
@@ -398,7 +420,7 @@ def _stack(path: Path, name: str, t_us: np.ndarray, images: np.ndarray, sensor: 
             f"{sensor.width}x{sensor.height}"
         )
     img = stack.images
-    if img.dtype.kind == "f" and img.size:
+    if (kind or name) == "frames" and img.dtype.kind == "f" and img.size:
         bad = np.flatnonzero(~np.isfinite(img.ravel()) | (img.ravel() < 0) | (img.ravel() > 1))
         if bad.size:
             k, rest = divmod(int(bad[0]), img.shape[1] * img.shape[2])
@@ -483,8 +505,20 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
                     raise EventFileError(f"{path}: dataset 'truth/{name}' has {ds.shape[0]} rows, there are {n} events")
                 truth_sets.append((name, ds))
         stacks = {name: _stack_datasets(f, path, name) for name in ("frames", "edges")}
+        if "maps" in f:
+            group = _group(f, path, "maps")
+            for name in group:
+                stacks[f"maps/{name}"] = _stack_datasets(group, path, name, "map")
+        imu_sets = []
+        if "imu" in f:
+            group = _group(f, path, "imu")
+            imu_sets = [(name, _dataset_in(group, path, name)) for name in group]
+            if (not imu_sets or "t_us" not in dict(imu_sets)
+                    or any(ds.ndim != 1 or ds.shape != imu_sets[0][1].shape for _, ds in imu_sets)):
+                raise EventFileError(f"{path}: group 'imu' needs 1-D datasets of one length, t_us among them")
         everything = [(ds.name.strip("/"), ds) for ds in columns] + [(f"truth/{k}", ds) for k, ds in truth_sets]
         everything += [(ds.name.strip("/"), ds) for pair in stacks.values() if pair for ds in pair]
+        everything += [(f"imu/{k}", ds) for k, ds in imu_sets]
         declared = sum(_declared_bytes(ds, path, full) for full, ds in everything)
         # the columns, the event array built from them and the truth table built from its columns
         short = memory_shortfall(2 * declared + 16 * n, f"reading {n} events with their truth and frames")
@@ -510,12 +544,32 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
             for name, col in fields:
                 truth[name] = col
         frames = edges = None
+        maps = {}
         for name, pair in stacks.items():
             if pair is not None:
                 t_us, images = (_read(ds, path, f"{name}/{part}", sums, place)
                                 for ds, part in zip(pair, ("t_us", "images")))
-                stack = _stack(path, name, t_us, images, sensor)
-                frames, edges = (stack, edges) if name == "frames" else (frames, stack)
+                kind = "map" if name.startswith("maps/") else name
+                stack = _stack(path, name, t_us, images, sensor, kind)
+                if kind == "map":
+                    maps[name.split("/", 1)[1]] = stack
+                elif name == "frames":
+                    frames = stack
+                else:
+                    edges = stack
+        imu = None
+        if imu_sets:
+            cols = [(name, _read(ds, path, f"imu/{name}", sums, place)) for name, ds in imu_sets]
+            imu = np.empty(cols[0][1].shape[0], dtype=[(n, c.dtype) for n, c in cols])
+            for name, col in cols:
+                imu[name] = col
+        calibration = None
+        if "calibration" in f.attrs:
+            place[:] = ["attribute 'calibration'"]
+            try:
+                calibration = CameraCalibration(*np.asarray(f.attrs["calibration"], dtype=np.float64).reshape(9).tolist())
+            except (TypeError, ValueError) as err:
+                raise EventFileError(f"{path}: attribute 'calibration' is not 9 numbers fx fy cx cy k1 k2 p1 p2 k3: {err}") from None
     order = None
     if sort:
         order = np.argsort(t, kind="stable")
@@ -525,7 +579,8 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
     metadata.update({"source": str(path), "format": "evedge-hdf5", "sensor_size_from": "file metadata"})
     if was_sorted:
         metadata["sorted_on_load"] = True
-    return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata)
+    return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata,
+                     calibration=calibration, maps=maps, imu=imu)
 
 
 def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> Iterator[np.ndarray]:
@@ -596,3 +651,11 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
             events, _ = finish_events(path, x, y, t, p, sensor, "file metadata", locate, False)
             last_t = int(t[-1]) if t.size else last_t
             yield events
+
+
+
+register_format(Format(
+    "hdf5", "evedge HDF5 (events, truth, frames, edge maps, metadata)",
+    extensions=(".h5", ".hdf5"), read=read_hdf5, write=write_recording,
+    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"), holds=("frames", "truth", "edges"),
+))
