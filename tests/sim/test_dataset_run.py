@@ -279,3 +279,9 @@ def test_dsec_layout_reads_back_the_way_dsec_loaders_do(client, reference, tmp_p
             assert ms_to_idx[k] == first
         assert ms_to_idx[-1] == rel.size  # the last entry is past every event
     assert all(len(r["files"]) == 2 for r in read_manifest(out).values())
+
+
+def test_a_cluster_needs_at_least_one_worker():
+    with pytest.raises(ClusterError, match="workers must be an integer >= 1, got 0"):
+        with dask_client(workers=0):
+            pass
