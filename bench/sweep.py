@@ -304,6 +304,7 @@ def _panel(ax, spec: DatasetSpec, rows: list[dict], methods: list[str], param: s
     """One swept parameter: every sequence's value, and per method (variant) the binned median with its IQR."""
     from .methods import COMPARED, PRIMARY_DISPLAY, colour, label
 
+    rows = [r for r in rows if r[f"param_{param}"] is not None]  # sequences it applies to (their family)
     values = [r[f"param_{param}"] for r in rows]
     numeric = all(isinstance(v, (int, float)) for v in values)
     cats = None if numeric else sorted(set(map(str, values)))
