@@ -75,12 +75,12 @@ def _check_query_time(name: str, value) -> int:
     return int(value)
 
 
-def _check_one_shot(events, sensor_size, times_us, size_name: str, size) -> tuple[SensorSize, int, np.ndarray]:
-    """Checks shared by the one-shot functions: sensor, events, the window size ``size_name``, query times."""
+def _check_one_shot(events, sensor_size, times_us, size_name: str, size) -> tuple[np.ndarray, SensorSize, int, np.ndarray]:
+    """Checks shared by the one-shot functions: events (converted), sensor, the window size ``size_name``, query times."""
     sensor_size = _check_sensor(sensor_size)
-    validate_events(events, sensor_size, name="events")
+    events = validate_events(events, sensor_size, name="events")
     size = _check_positive_int(size_name, size)
-    return sensor_size, size, _check_times(times_us)
+    return events, sensor_size, size, _check_times(times_us)
 
 
 def accumulate_time(events: np.ndarray, sensor_size: SensorSize, times_us, window_us: int) -> np.ndarray:
@@ -102,7 +102,7 @@ def accumulate_time(events: np.ndarray, sensor_size: SensorSize, times_us, windo
         Boolean, shape ``(n, height, width)``: pixel on at ``T`` when an event
         fell on it with ``T - window_us < t <= T``.
     """
-    sensor_size, window_us, times = _check_one_shot(events, sensor_size, times_us, "window_us", window_us)
+    events, sensor_size, window_us, times = _check_one_shot(events, sensor_size, times_us, "window_us", window_us)
     t = events["t"]
     lo = np.searchsorted(t, times - window_us, side="right")
     hi = np.searchsorted(t, times, side="right")
@@ -129,7 +129,7 @@ def accumulate_count(events: np.ndarray, sensor_size: SensorSize, times_us, n_ev
         last ``n_events`` events with ``t <= T`` fell on it (all of them when
         fewer exist).
     """
-    sensor_size, n_events, times = _check_one_shot(events, sensor_size, times_us, "n_events", n_events)
+    events, sensor_size, n_events, times = _check_one_shot(events, sensor_size, times_us, "n_events", n_events)
     hi = np.searchsorted(events["t"], times, side="right")
     lo = np.maximum(hi - n_events, 0)
     return _images_from_ranges(events, sensor_size, lo, hi)
@@ -152,7 +152,7 @@ class _Streaming:
         self._last_t: int | None = None
 
     def _accept(self, chunk: np.ndarray) -> np.ndarray:
-        validate_events(chunk, self.sensor_size, name="chunk")
+        chunk = validate_events(chunk, self.sensor_size, name="chunk")
         if chunk.size:
             if self._last_t is not None and chunk["t"][0] < self._last_t:
                 raise ValueError(

@@ -113,7 +113,7 @@ class EventBuffer:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Take a time-sorted chunk; return the kept events whose fate is now known."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         if events.size == 0:
             return events[:0].copy()
@@ -182,7 +182,7 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     """
     sensor_size = check_sensor_size(sensor_size)
     params = _check_params(params)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     w, h = sensor_size.width, sensor_size.height
     x, y, t, p = columns(events)
     n = events.shape[0]

@@ -12,6 +12,7 @@ import click
 import numpy as np
 
 from evedge._cli_options import sensor_option
+from evedge.video import edge_png
 
 _CHUNK = 100_000
 #: Most memory the edge frames (one byte per pixel) may take before --fps is refused as a mistake.
@@ -178,7 +179,8 @@ def _write_pngs(folder: Path, times, frames, quiet) -> None:
     written = set()
     for i, (t, img) in enumerate(tqdm(list(zip(times, frames)), desc="PNG", unit="frame", disable=quiet)):
         target = folder / f"edges_{i:06d}_{int(t)}us.png"
-        _atomic(target, lambda tmp, img=img: Image.fromarray((img * 255).astype(np.uint8)).save(tmp, format="PNG"))
+        # the report's convention: black edges on white
+        _atomic(target, lambda tmp, img=img: Image.fromarray(edge_png(np.asarray(img, bool))).save(tmp, format="PNG"))
         written.add(target.name)
     # A rerun into the same folder must not leave frames of an earlier run beside the new ones.
     for old in folder.iterdir():
@@ -194,6 +196,24 @@ class _DetectCommand(click.Command):
             if p.name == "method":
                 p.help = _method_help()
         return super().get_help(ctx)
+
+
+def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> None:
+    """The edge frames of ``det`` as a video, coloured by lifetime/polarity of the events behind them."""
+    from evedge.video import edge_video_frames, write_video
+
+    colour = colour or ("lifetime" if lifetimes is not None else "mono")
+    events, life = rec.events, None
+    if lifetimes is not None:
+        events, life = rec.events[kept], lifetimes["lifetime_us"][kept]
+    elif colour == "lifetime":
+        raise click.BadParameter(f"method {det.metadata['method']!r} gives no lifetimes", param_hint="'--video-colour'")
+    label = f"{det.metadata['method']}" + (f", {colour}" if colour != "mono" else "")
+    frames = edge_video_frames(det.edges, grey=rec.frames, events=events, lifetime_us=life, colour=colour, label=label)
+    try:
+        write_video(path, frames, fps=min(fps, 60.0), n_frames=len(det.edges), quiet=quiet)
+    except ValueError as err:
+        raise click.ClickException(str(err)) from None
 
 
 @click.command(cls=_DetectCommand)
@@ -229,9 +249,13 @@ class _DetectCommand(click.Command):
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed of the method (same as --param seed=N).")
 @click.option("--embed-events/--no-embed-events", default=True, show_default=True,
               help="Store the events in detection.h5 (else only the source's sha256 and absolute path).")
+@click.option("--video", "video", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also write the edge frames as a video (.mp4 or .gif), over the grey frames when there are any.")
+@click.option("--video-colour", type=click.Choice(["lifetime", "polarity", "mono"]), default=None,
+              help="Edge colour in --video: by lifetime (default for lifetime methods), polarity, or mono.")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def detect(events_file, out, method, param_items, config, fps, times, at_frames, window_ms, n_events, sensor, sort, use_buffer,
-           display, seed, embed_events, quiet):
+           display, seed, embed_events, video, video_colour, quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads) with any registered method.
 
     Writes OUT/detection.h5, a self-describing file (format evedge-detection:
@@ -325,6 +349,8 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
         out.mkdir(parents=True, exist_ok=True)
         write_detection(out / "detection.h5", det)
         _write_pngs(out / "edges", frame_t, frames, quiet)
+        if video is not None:
+            _write_video(video, rec, det, lifetimes, kept, video_colour, fps, quiet)
     except OSError as err:
         raise click.ClickException(f"cannot write the output into {out}: {err}") from None
     msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"

@@ -93,7 +93,7 @@ class EdgeImage:
 
     def process(self, events: np.ndarray, lifetimes: np.ndarray) -> None:
         """Apply a time-sorted chunk of events with their lifetimes (aligned)."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_lifetimes(lifetimes, events.shape[0])
         check_not_before(events, self._last_time)
         if events.size == 0:
@@ -143,7 +143,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
         bool, shape ``(len(times_us), height, width)``, in the order of ``times_us``.
     """
     sensor_size = check_sensor_size(sensor_size)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     check_lifetimes(lifetimes, events.shape[0])
     times = np.asarray(times_us)
     if times.ndim != 1 or (times.size and times.dtype.kind not in "iuf"):

@@ -300,7 +300,7 @@ class IntraPixelLifetime:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
         out = empty_lifetimes(n)

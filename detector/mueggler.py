@@ -326,7 +326,7 @@ class MuegglerLifetime:
             (``lifetime_us`` in us, flow in px/s; NaN and ``valid`` False
             when no estimate).
         """
-        validate_events(chunk, self.sensor_size, name="chunk")
+        chunk = validate_events(chunk, self.sensor_size, name="chunk")
         n = chunk.shape[0]
         out = np.empty(n, dtype=LIFETIME_DTYPE)
         if n == 0:

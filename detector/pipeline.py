@@ -133,7 +133,7 @@ def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None) ->
     sensor_size = check_sensor_size(sensor_size)
     entry = METHODS.get(filter_name, kind="filter")
     kw = method_params(filter_name, params)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     if "keep_mask" in entry.metadata:
         return np.asarray(entry.metadata["keep_mask"](events, sensor_size, **kw), dtype=bool)
     flt = entry.factory(sensor_size, **kw)
@@ -237,7 +237,7 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     sensor_size = check_sensor_size(sensor_size)
     flt = _default_filter(method, use_buffer, filter)
     estimator = make_method(method, sensor_size, params, kind="estimator")
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     kept = keep_mask(flt, events, sensor_size, buffer_params) if flt else np.ones(events.shape[0], bool)
     sub = events[kept] if flt else events
     est = _check_estimate(method, estimator.process(sub), sub.shape[0])
@@ -300,6 +300,7 @@ class Detector:
 
     def process(self, events: np.ndarray):
         """Feed a time-sorted chunk; return ``(released_events, lifetimes)``."""
+        events = check_events(events, self.sensor_size, name="chunk")
         if self.buffer is None:
             return self._run(events)
         return self._run(self.buffer.process(events))

@@ -36,7 +36,7 @@ def test_detect_intra_writes_lifetimes_and_frames(tmp_path, edge_events):
     assert np.nanmedian(lt) == np.float64(np.nanmedian(want.lifetimes["lifetime_us"]))
     pngs = sorted((out / "edges").glob("*.png"))
     assert len(pngs) == 2
-    img = np.asarray(Image.open(pngs[1])) > 0
+    img = np.asarray(Image.open(pngs[1])) == 0  # black edges on white, as the report draws them
     np.testing.assert_array_equal(img, frames[1])
     assert frames[1].any()
     assert not list(out.glob(".*tmp"))  # no temp files left
