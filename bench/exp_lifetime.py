@@ -418,6 +418,7 @@ def plot_regions(axes, name: str, res: dict, arrays: dict) -> None:
             if tl:
                 ax.axvline(tl, color="k", lw=1.5, ls="--", label="true lifetime")
             _log_ms_axis(ax)
+            ax.set_ylabel("density (per lifetime)")
         n_rows = len(regions["rows"][reg])
         ax.set_title(f"{name}, {reg} region ({n_rows} rows)", fontsize=9)
         ax.legend(fontsize=7)
