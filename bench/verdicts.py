@@ -395,7 +395,9 @@ def real_verdicts(real: dict, displays=DISPLAYS) -> list[dict]:
                 diag = [f"{m} {_fmt(per_method[m]['median'].get(ref, np.nan))}" for m in per_method
                         if m in _DIAGNOSTIC or m not in _PAPER_METHODS]
                 if diag:
-                    ev += "; diagnostic or other methods (not ranked): " + ", ".join(diag)
+                    kind = "diagnostic" if all(m in _DIAGNOSTIC for m in per_method if m not in med) \
+                        else "diagnostic or other methods"
+                    ev += f"; {kind} (not ranked): " + ", ".join(diag)
                 ev += f"; best: {best}"
                 if best == "acc_count":
                     rest = {m: v for m, v in med.items() if m != "acc_count"}

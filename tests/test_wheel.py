@@ -35,7 +35,12 @@ def test_wheel_installs_and_runs_outside_the_checkout():
     (base / "run").mkdir(parents=True)
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
     env["NUMBA_CACHE_DIR"] = str(base / "numba")
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", base / "wheel", ROOT], base, env)
+    # build from a clean copy of the sources: a stale build/ of the checkout must not leak into the wheel
+    src = base / "src"
+    shutil.rmtree(src, ignore_errors=True)
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".git", ".venv", "build", "dist", "*.egg-info",
+                                                             "__pycache__", ".pytest_cache", "tmp", "*_out"))
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", base / "wheel", src], base, env)
     wheels = list((base / "wheel").glob("evedge-*.whl"))
     assert len(wheels) == 1
     _run([sys.executable, "-m", "venv", "--without-pip", base / "venv"], base, env)
