@@ -283,6 +283,34 @@ def parse_dataset(data: dict, source: str = "<dataset>") -> DatasetSpec:
                        source=source, raw=data)
 
 
+def shipped_datasets() -> tuple[str, ...]:
+    """Names of the dataset specs shipped with evedge (``scenes/datasets/*.toml``, package data)."""
+    from importlib.resources import files
+
+    folder = files("evedge.scenes") / "datasets"
+    return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
+
+
+def dataset_path(spec) -> Path:
+    """``spec`` itself when it is a file, else the shipped spec of that name (``small``).
+
+    Raises
+    ------
+    DatasetError
+        Neither a file nor a shipped name (the shipped names are listed).
+    """
+    from importlib.resources import files
+
+    path = Path(spec)
+    if path.is_file() or path.suffix or len(path.parts) > 1:
+        return path  # a path: load_dataset names it if it cannot be read
+    shipped = shipped_datasets()
+    if str(spec) in shipped:
+        return Path(str(files("evedge.scenes") / "datasets" / f"{spec}.toml"))
+    raise DatasetError(f"{spec}: no such file, and no shipped dataset spec of that name (shipped: "
+                       f"{', '.join(shipped)})")
+
+
 def load_dataset(path) -> DatasetSpec:
     """Read and validate a dataset spec file (TOML, schema in ``sim/DATASETS.md``).
 

@@ -199,3 +199,15 @@ def test_parameters_of_another_family_are_none_and_leave_the_others_alone():
             assert len(p["shape_kind"]) == p["shape_count"]
         assert p["speed_px_s"] == q["speed_px_s"]  # the family's draw does not shift the others
         sequence_scene(spec, spec.sequence(i))
+
+
+def test_shipped_specs_by_name():
+    from evedge.sim.dataset import dataset_path, shipped_datasets
+
+    assert {"small", "sweep_stripes"} <= set(shipped_datasets())
+    assert load_dataset(dataset_path("small")).name == "small"
+    assert dataset_path(SMALL) == SMALL
+    with pytest.raises(DatasetError, match=r"tiny: no such file, and no shipped dataset spec .*small"):
+        dataset_path("tiny")
+    with pytest.raises(DatasetError, match="cannot read"):
+        load_dataset(dataset_path("missing/tiny.toml"))
