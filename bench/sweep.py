@@ -304,6 +304,7 @@ def _panel(ax, spec: DatasetSpec, rows: list[dict], methods: list[str], param: s
     """One swept parameter: every sequence's value, and per method (variant) the binned median with its IQR."""
     from .methods import COMPARED, PRIMARY_DISPLAY, colour, label
 
+    rows = [r for r in rows if r[f"param_{param}"] is not None]  # sequences it applies to (their family)
     values = [r[f"param_{param}"] for r in rows]
     numeric = all(isinstance(v, (int, float)) for v in values)
     cats = None if numeric else sorted(set(map(str, values)))
@@ -367,10 +368,10 @@ def plot_sweeps(out_dir: Path, spec: DatasetSpec, table: list[dict]) -> list[tup
         for ax in axes[:, 0]:
             ax.set_ylabel(f"{metric} ({reference})")
         handles, labels = axes.flat[0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="upper center", ncol=min(7, len(labels)), fontsize=8,
+        fig.legend(handles, labels, loc="upper center", ncol=min(4, len(labels)), fontsize=8,
                    bbox_to_anchor=(0.5, 1.0))
         fig.suptitle(f"{text}: each dot a sequence; line and band: median and interquartile range in "
-                     f"quantile bins of the parameter", fontsize=9, y=1.04)
+                     f"quantile bins of the parameter", fontsize=9, y=1.07)
         fig.tight_layout()
         figures.append(((metric, reference), save_figure(fig, out_dir / f"sweep_{metric}.png")))
     return figures

@@ -20,14 +20,16 @@ import click
 @click.option("--no-progress", is_flag=True, help="Hide progress bars.")
 def sweep(spec: Path, out: Path, workers, scheduler, retries: int, no_progress: bool) -> None:
     """Grade the methods over the dataset of SPEC (a dataset spec, sim/DATASETS.md, with an optional
-    [sweep] table: methods, warmup_s), making the dataset in OUT/dataset when missing."""
+    [sweep] table: methods, warmup_s, canny_settings; or a shipped spec's name, e.g. sweep_stripes),
+    making the dataset in OUT/dataset when missing."""
     from evedge.parallel import ClusterError
+    from evedge.sim.dataset import dataset_path
     from evedge.sim.scene import SceneError
 
     from .sweep import load_sweep, run_sweep
 
     try:
-        parsed = load_sweep(spec)
+        parsed = load_sweep(dataset_path(spec))
         res = run_sweep(parsed, out, workers=workers, scheduler=scheduler, retries=retries,
                         progress=not no_progress)
     except (SceneError, ClusterError, OSError) as err:

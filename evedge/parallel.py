@@ -90,7 +90,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, *, cli
     n = default_workers() if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ClusterError(f"workers must be an integer >= 1, got {workers!r}")
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    # ":0": the scheduler's HTTP server on a free port (a fixed 8787 clashes with other clusters on the machine)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            memory_limit=memory_limit, silence_logs=logging.ERROR)
     try:
         with Client(cluster) as c:

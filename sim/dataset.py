@@ -63,6 +63,7 @@ class Param:
     lo_open: bool = False
     choices: tuple | None = None
     per_shape: bool = False
+    families: tuple[str, ...] | None = None  # the families it applies to (None: all)
 
 
 def _sensor_name(v: str) -> str | None:
@@ -86,16 +87,18 @@ PARAMETERS: dict[str, Param] = {
     "angle_deg": Param("number", 0.0, "stripes: direction of the stripe normal; shapes: rotation at t = 0; "
                                       "boxes: camera roll at t = 0"),
     "angular_velocity_deg_s": Param("number", 0.0, "shapes: rotation speed about the image centre; "
-                                                   "boxes: camera roll rate"),
+                                                   "boxes: camera roll rate", families=("shapes", "boxes")),
     "contrast": Param("number", 0.6, "Michelson contrast of pattern against background", lo=0, lo_open=True, hi=1),
     "mean_intensity": Param("number", 0.5, "mean of dark and light (linear)", lo=0, lo_open=True, hi=1),
-    "period_px": Param("number", 20.0, "stripes: period", lo=0, lo_open=True),
-    "shape_count": Param("integer", 3, "shapes: number of shapes (laid out on a grid)", lo=1, hi=1024),
+    "period_px": Param("number", 20.0, "stripes: period", lo=0, lo_open=True, families=("stripes",)),
+    "shape_count": Param("integer", 3, "shapes: number of shapes (laid out on a grid)", lo=1, hi=1024,
+                         families=("shapes",)),
     "shape_kind": Param("string", "square", "shapes: kind of each shape (drawn per shape)",
                         choices=DATASET_SHAPE_KINDS, per_shape=True),
     "shape_radius_px": Param("number", 10.0, "shapes: circumradius of each shape (drawn per shape)",
                              lo=0, lo_open=True, per_shape=True),
-    "box_count": Param("integer", 3, "boxes: number of boxes (laid out on a grid of the image)", lo=1, hi=256),
+    "box_count": Param("integer", 3, "boxes: number of boxes (laid out on a grid of the image)", lo=1, hi=256,
+                       families=("boxes",)),
     "box_depth_m": Param("number", 3.0, "boxes: depth of each box centre (drawn per box)", lo=0.2, hi=1e4,
                          per_shape=True),
     "box_size_m": Param("number", 0.6, "boxes: edge of each (cubic) box (drawn per box)", lo=0, lo_open=True,
@@ -280,6 +283,34 @@ def parse_dataset(data: dict, source: str = "<dataset>") -> DatasetSpec:
                        source=source, raw=data)
 
 
+def shipped_datasets() -> tuple[str, ...]:
+    """Names of the dataset specs shipped with evedge (``scenes/datasets/*.toml``, package data)."""
+    from importlib.resources import files
+
+    folder = files("evedge.scenes") / "datasets"
+    return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
+
+
+def dataset_path(spec) -> Path:
+    """``spec`` itself when it is a file, else the shipped spec of that name (``small``).
+
+    Raises
+    ------
+    DatasetError
+        Neither a file nor a shipped name (the shipped names are listed).
+    """
+    from importlib.resources import files
+
+    path = Path(spec)
+    if path.is_file() or path.suffix or len(path.parts) > 1:
+        return path  # a path: load_dataset names it if it cannot be read
+    shipped = shipped_datasets()
+    if str(spec) in shipped:
+        return Path(str(files("evedge.scenes") / "datasets" / f"{spec}.toml"))
+    raise DatasetError(f"{spec}: no such file, and no shipped dataset spec of that name (shipped: "
+                       f"{', '.join(shipped)})")
+
+
 def load_dataset(path) -> DatasetSpec:
     """Read and validate a dataset spec file (TOML, schema in ``sim/DATASETS.md``).
 
@@ -316,7 +347,13 @@ def _crc(name: str) -> int:
 
 
 def draw_parameters(spec: DatasetSpec, index: int) -> dict:
-    """The parameter values of sequence ``index`` (per-shape ones are lists of ``shape_count``)."""
+    """The parameter values of sequence ``index``.
+
+    Per-shape (per-box) ones are lists of ``shape_count`` (``box_count``)
+    values, empty for other families; a parameter that does not apply to the
+    drawn family (``period_px`` of a shapes sequence) is None. Its stream is
+    still its own, so the others do not depend on it.
+    """
     if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < spec.count:
         raise ValueError(f"{spec.source}: sequence index must be an integer in [0, {spec.count}), got {index!r}")
     index = int(index)
@@ -324,6 +361,9 @@ def draw_parameters(spec: DatasetSpec, index: int) -> dict:
     for name, p in PARAMETERS.items():
         if not p.per_shape:
             out[name] = spec.parameters[name].draw(_stream(spec, index, _crc(name)))
+    for name, p in PARAMETERS.items():
+        if p.families is not None and out["family"] not in p.families:
+            out[name] = None
     counts = {"shape": out["shape_count"] if out["family"] == "shapes" else 0,
               "box": out["box_count"] if out["family"] == "boxes" else 0}
     for name, p in PARAMETERS.items():

@@ -23,7 +23,7 @@ import click
               help="Extra attempts of a sequence whose task raised.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def dataset(spec: Path, output: Path, workers, scheduler, layouts, retries: int, quiet: bool) -> None:
-    """Make the dataset of SPEC (TOML, see sim/DATASETS.md) in OUTPUT.
+    """Make the dataset of SPEC (TOML, see sim/DATASETS.md; or a shipped spec's name, e.g. small) in OUTPUT.
 
     Sequences whose files exist and match the manifest's sha256 are kept;
     missing, corrupt or failed ones are made again. Exits with status 1 when
@@ -31,12 +31,12 @@ def dataset(spec: Path, output: Path, workers, scheduler, layouts, retries: int,
     """
     from evedge.parallel import ClusterError
 
-    from .dataset import load_dataset
+    from .dataset import dataset_path, load_dataset
     from .dataset_run import generate_dataset
     from .scene import SceneError
 
     try:
-        parsed = load_dataset(spec)
+        parsed = load_dataset(dataset_path(spec))
         run = generate_dataset(parsed, output, layouts=layouts or ("evedge",), workers=workers,
                                scheduler=scheduler, retries=retries, progress=not quiet)
     except (SceneError, ClusterError, OSError) as err:

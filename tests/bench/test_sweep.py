@@ -165,3 +165,17 @@ def test_the_shipped_dataset_spec_is_a_sweep_spec():
 
     s = load_sweep(Path(__file__).resolve().parents[2] / "scenes" / "datasets" / "small.toml")
     assert s.methods == tuple(METHODS) and s.dataset.count == 6
+
+
+def test_sweep_command_reports_a_bad_spec_without_traceback(tmp_path):
+    from click.testing import CliRunner
+
+    from evedge.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[dataset]\ncount = 2\n[sweep]\nmethods = ["proposed", "nope"]\n')
+    res = CliRunner().invoke(main, ["bench", "sweep", str(bad), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 1
+    assert "key 'sweep.methods[1]': unknown method 'nope'" in res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    assert not (tmp_path / "o").exists()

@@ -183,3 +183,31 @@ def test_boxes_sequence_renders(tmp_path):
     assert rec.events.shape[0] > 0 and rec.edges.images.any()
     speed = np.hypot(rec.truth["vx_px_s"], rec.truth["vy_px_s"])
     assert 50 < np.nanmedian(speed[rec.truth["is_signal"]]) < 200  # 100 px/s at the mean depth
+
+
+def test_parameters_of_another_family_are_none_and_leave_the_others_alone():
+    data = _spec(count=20, family={"choice": ["stripes", "shapes"]}, period_px={"uniform": [10, 30]},
+                 shape_count={"integers": [1, 3]}, speed_px_s={"uniform": [10, 20]})
+    spec = parse_dataset(data)
+    fixed = parse_dataset(dict(data, parameters=dict(data["parameters"], family="stripes")))
+    for i in range(spec.count):
+        p, q = draw_parameters(spec, i), draw_parameters(fixed, i)
+        if p["family"] == "stripes":
+            assert p["shape_count"] is None and p["shape_kind"] == [] and 10 <= p["period_px"] < 30
+        else:
+            assert p["period_px"] is None and p["shape_count"] in (1, 2, 3)
+            assert len(p["shape_kind"]) == p["shape_count"]
+        assert p["speed_px_s"] == q["speed_px_s"]  # the family's draw does not shift the others
+        sequence_scene(spec, spec.sequence(i))
+
+
+def test_shipped_specs_by_name():
+    from evedge.sim.dataset import dataset_path, shipped_datasets
+
+    assert {"small", "sweep_stripes"} <= set(shipped_datasets())
+    assert load_dataset(dataset_path("small")).name == "small"
+    assert dataset_path(SMALL) == SMALL
+    with pytest.raises(DatasetError, match=r"tiny: no such file, and no shipped dataset spec .*small"):
+        dataset_path("tiny")
+    with pytest.raises(DatasetError, match="cannot read"):
+        load_dataset(dataset_path("missing/tiny.toml"))

@@ -255,9 +255,13 @@ def test_unreachable_scheduler_is_named():
 def test_dsec_layout_reads_back_the_way_dsec_loaders_do(client, reference, tmp_path):
     spec, serial_dir, _ = reference
     out = tmp_path / "ds"
+    generate_dataset(spec, out, client=client, progress=False)
+    inodes = {p.name: p.stat().st_ino for p in (out / "sequences").glob("*.h5")}
+    # adding a layout writes only the new files, from the verified evedge files (no new simulation)
     run = generate_dataset(spec, out, layouts=("evedge", "dsec"), client=client, progress=False)
-    assert run.failed == 0
-    assert _files(out) == _files(serial_dir)  # the evedge files do not change with the extra layout
+    assert (run.made, run.skipped, run.failed) == (4, 0, 0)
+    assert {p.name: p.stat().st_ino for p in (out / "sequences").glob("*.h5")} == inodes
+    assert _files(out) == _files(serial_dir)
     for i in range(spec.count):
         name = spec.sequence_name(i)
         ours = read_hdf5(out / "sequences" / f"{name}.h5").events
@@ -278,4 +282,19 @@ def test_dsec_layout_reads_back_the_way_dsec_loaders_do(client, reference, tmp_p
             first = next((j for j in range(rel.size) if rel[j] >= 1000 * k), rel.size)
             assert ms_to_idx[k] == first
         assert ms_to_idx[-1] == rel.size  # the last entry is past every event
-    assert all(len(r["files"]) == 2 for r in read_manifest(out).values())
+    rows = read_manifest(out)
+    assert all(len(r["files"]) == 2 for r in rows.values())
+    # the same as a run that simulates both layouts at once
+    both = tmp_path / "both"
+    generate_dataset(spec, both, layouts=("evedge", "dsec"), client=client, progress=False)
+    assert _stable(read_manifest(both)) == _stable(rows)
+    # asking for one layout only keeps what is there
+    run = generate_dataset(spec, out, layouts=("dsec",), client=client, progress=False)
+    assert (run.made, run.skipped) == (0, 4)
+    assert all(list(r["files"]) == [f"dsec/{r['name']}/events/left/events.h5"] for r in run.rows.values())
+
+
+def test_a_cluster_needs_at_least_one_worker():
+    with pytest.raises(ClusterError, match="workers must be an integer >= 1, got 0"):
+        with dask_client(workers=0):
+            pass
