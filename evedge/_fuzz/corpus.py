@@ -177,6 +177,10 @@ class Seeds:
 
         return self._once("aedat4", make)
 
+    def dataset_specs(self) -> list[bytes]:
+        return self._once("dataset_specs",
+                          lambda: [p.read_bytes() for p in sorted((REPO / "scenes" / "datasets").glob("*.toml"))])
+
     def scenes(self) -> list[bytes]:
         return self._once("scenes", lambda: [p.read_bytes() for p in sorted((REPO / "scenes").glob("*.toml"))])
 
@@ -321,12 +325,17 @@ def crafted_aedat4(rng) -> tuple[bytes, str]:
     return aedat4_bytes(int(rng.choice([0, 40000, 2**31 - 1])), 16, [([1], [1], [5], [1])]), "aedat_size"
 
 
-def crafted_scene(seed_text: bytes, rng) -> tuple[bytes, str]:
-    """Scene TOML with extreme values for keys that set work or memory."""
-    keys = ("duration_s", "frame_rate_hz", "min_step_s", "min_rate_hz", "noise_rate_hz", "width", "height",
-            "lambda_", "refractory_us", "speed_px_s", "jitter_us", "count", "period_px", "radius_px")
+SCENE_KEYS = ("duration_s", "frame_rate_hz", "min_step_s", "min_rate_hz", "noise_rate_hz", "width", "height",
+              "lambda_", "refractory_us", "speed_px_s", "jitter_us", "count", "period_px", "radius_px")
+DATASET_KEYS = ("count", "seed", "duration_s", "frame_rate_hz", "speed_px_s", "noise_rate_hz", "sensor",
+                "shape_count", "period_px", "threshold", "refractory_us", "contrast")
+
+
+def crafted_scene(seed_text: bytes, rng, keys=SCENE_KEYS) -> tuple[bytes, str]:
+    """Scene (or dataset spec) TOML with extreme values for keys that set work or memory."""
     values = ("1e300", "1e-300", str(2**63), str(10**400), "0", "-1", "nan", "inf", "1e6", "9e12", "32767",
-              "100000", "1e-9")
+              "100000", "1e-9", '"30000x30000"', "{ uniform = [0, 1e300] }", "{ choice = [] }",
+              "{ log_uniform = [-1, 5] }", "{ integers = [5, 1] }", '"x"', "[1, 2]")
     key = keys[int(rng.integers(0, len(keys)))]
     value = values[int(rng.integers(0, len(values)))]
     text = seed_text
@@ -565,4 +574,12 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
         else:
             data, what = mu.mutate(text, rng, mu.TEXT_MUTATORS)
         return Case(case_id, target, what, lambda d: _write(d, "scene.toml", data), root)
+    if target == "dataset_spec":
+        texts = seeds.dataset_specs()
+        text = texts[int(rng.integers(0, len(texts)))]
+        if crafted or rng.random() < 0.3:
+            data, what = crafted_scene(text, rng, DATASET_KEYS)
+        else:
+            data, what = mu.mutate(text, rng, mu.TEXT_MUTATORS)
+        return Case(case_id, target, what, lambda d: _write(d, "dataset.toml", data), root)
     raise KeyError(f"no corpus for target {target!r}")

@@ -149,6 +149,7 @@ TARGETS = {
     "hdf5_stream": Target("evedge.io:iter_hdf5_events", _EVENT_FILE_ERROR, (), None, _consume),
     "aedat4": Target("evedge.io:read_aedat4", _EVENT_FILE_ERROR, (), check_recording),
     "scene": Target("evedge.sim.scene:load_scene", "evedge.sim.scene:SceneError"),
+    "dataset_spec": Target("evedge.sim.dataset:load_dataset", "evedge.sim.scene:SceneError"),
 }
 
 #: Targets outside the campaign: the harness's own checks.
