@@ -151,3 +151,22 @@ def test_a_full_disk_is_an_error_line_and_keeps_the_earlier_output(tmp_path, ful
     code, text, _ = _run("bench", "ransac", "-o", folder / "b", "--quick", "--repetitions", "2", "--no-progress",
                          preexec_fn=limit)
     assert code == 1 and "Traceback" not in text and "cannot write the output" in text, text
+
+
+def test_kill_9_during_dataset_keeps_only_whole_sequences_and_a_rerun_completes(tmp_path):
+    from evedge.io import read_hdf5
+
+    out = tmp_path / "ds"
+    args = ("dataset", "small", "-o", out, "--workers", "1", "--quiet")
+    _kill_at(float(np.random.default_rng(14).uniform(3.0, 6.0)), *args)
+    rows = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()] \
+        if (out / "manifest.jsonl").exists() else []
+    for row in rows:
+        if row["status"] == "ok":
+            for rel, digest in row["files"].items():
+                assert hashlib.sha256((out / rel).read_bytes()).hexdigest() == digest
+    for h5 in out.rglob("*.h5") if out.exists() else ():
+        read_hdf5(h5)  # every sequence file present is whole (checksums verified)
+    code, text, _ = _run(*args)
+    assert code == 0 and "6/6 sequences ok" in text, text
+    assert not list(out.rglob("*.tmp"))

@@ -1,6 +1,6 @@
 """A bounded, seeded fuzz run of every public reader: no traceback, crash, hang or unbounded allocation.
 
-200 malformed inputs per target (mutations of the real recordings beside the
+120 malformed inputs per target (mutations of the real recordings beside the
 repository when present and of generated files, crafted HDF5/.mat/AEDAT4/PNG
 structures, mutated scenes), each in a worker under a 2 GiB address-space and
 a 20 s time limit. Every failure must be the documented error naming the file;
@@ -14,7 +14,7 @@ import pytest
 
 from evedge._fuzz import FAILURES, TARGETS, Limits, run
 
-CASES_PER_TARGET = 200
+CASES_PER_TARGET = 120
 
 
 @pytest.fixture(scope="module")
