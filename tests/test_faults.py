@@ -64,8 +64,10 @@ def _detection_digest(out: Path) -> str:
         times, frames = f["edges/t_us"][()], f["edges/images"][()]
     pngs = sorted((out / "edges").iterdir())
     assert [p.name for p in pngs] == [f"edges_{i:06d}_{int(t)}us.png" for i, t in enumerate(times)]
+    from evedge.video import edge_png
+
     for png, frame in zip(pngs, frames):
-        assert np.array_equal(np.asarray(Image.open(png)), frame.astype(np.uint8) * 255)
+        assert np.array_equal(np.asarray(Image.open(png)), edge_png(frame.astype(bool)))
     return hashlib.sha256(times.tobytes() + frames.tobytes()).hexdigest()
 
 
