@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import mutate as mu
+from .targets import NATIVE_FORMATS
 
 REPO = Path(__file__).resolve().parents[2]
 #: The real recordings beside the repository (not part of it); optional.
@@ -177,6 +178,37 @@ class Seeds:
 
         return self._once("aedat4", make)
 
+    def native(self, fmt: str) -> list[bytes]:
+        """Files of a registered format: written by its writer, or built (AEDAT 2/3, read only)."""
+
+        def make():
+            rec = small_recording(700, 6, frames=False, truth=False)
+            if fmt == "aedat2":
+                return [aedat2_bytes(rec, davis) for davis in (False, True)]
+            if fmt == "aedat3":
+                return [aedat3_bytes(rec)]
+            from evedge.io import write_events
+
+            path = write_events(self.folder / f"seed.{fmt}", rec, format=fmt)
+            return [path.read_bytes()]
+
+        return self._once(f"native_{fmt}", make)
+
+    def detection(self) -> list[bytes]:
+        def make():
+            from evedge.io.detection import LIFETIME_COLUMNS, Detection, write_detection
+            from evedge.events import Frames
+
+            rec = small_recording(600, 7, frames=False, truth=False)
+            table = np.zeros(rec.events.size, dtype=list(LIFETIME_COLUMNS))
+            table["lifetime_us"] = np.linspace(1e3, 2e4, rec.events.size)
+            table["valid"] = table["kept"] = True
+            edges = Frames(np.array([100_000, 200_000]), np.random.default_rng(7).random((2, 180, 240)) > 0.9)
+            det = Detection(rec.sensor_size, rec.events, table, edges, {"method": "intra", "params": {}})
+            return [write_detection(self.folder / "seed_det.h5", det).read_bytes()]
+
+        return self._once("detection", make)
+
     def dataset_specs(self) -> list[bytes]:
         return self._once("dataset_specs",
                           lambda: [p.read_bytes() for p in sorted((REPO / "scenes" / "datasets").glob("*.toml"))])
@@ -219,6 +251,39 @@ def aedat4_bytes(width: int, height: int, packets: list[tuple], stream_type: str
     )
     data = b"#!AER-DAT4.0\r\n" + _flatbuffer_ioheader(description)
     return data + b"".join(_flatbuffer_event_packet(0, *cols) for cols in packets)
+
+
+def aedat2_bytes(rec, davis: bool) -> bytes:
+    """An AEDAT 2.0 file (jAER): big-endian (address, time) pairs after a ``#`` header."""
+    ev = rec.events
+    if davis:
+        header, address = "# HardwareInterface: DAVIS240C\r\n", (ev["y"].astype(np.uint32) << 22) | \
+            (ev["x"].astype(np.uint32) << 12) | (ev["p"].astype(np.uint32) << 11)
+    else:
+        keep = (ev["x"] < 128) & (ev["y"] < 128)
+        ev = ev[keep]
+        header, address = "# HardwareInterface: DVS128\r\n", (ev["y"].astype(np.uint32) << 8) | \
+            (ev["x"].astype(np.uint32) << 1) | ev["p"].astype(np.uint32)
+    raw = np.empty(ev.size, dtype=[("a", ">u4"), ("t", ">i4")])
+    raw["a"], raw["t"] = address, ev["t"]
+    return b"#!AER-DAT2.0\r\n" + header.encode() + raw.tobytes()
+
+
+def aedat3_bytes(rec, per_packet: int = 200) -> bytes:
+    """An AEDAT 3.1 file (cAER): polarity-event packets (28-byte header, 8-byte events)."""
+    data = b"#!AER-DAT3.1\r\n#Format: RAW\r\n#Source 1: DAVIS240C\r\n#!END-HEADER\r\n"
+    ev = rec.events
+    for start in range(0, ev.size, per_packet):
+        chunk = ev[start:start + per_packet]
+        body = np.empty(chunk.size, dtype=[("d", "<u4"), ("t", "<i4")])
+        body["d"] = (chunk["x"].astype(np.uint32) << 17) | (chunk["y"].astype(np.uint32) << 2) | \
+            (chunk["p"].astype(np.uint32) << 1) | 1
+        body["t"] = chunk["t"]
+        n = chunk.size
+        data += np.array([(1, 1, 8, 4, 0, n, n, n)], dtype=[("a", "<i2"), ("b", "<i2"), ("c", "<i4"), ("d", "<i4"),
+                                                            ("e", "<i4"), ("f", "<i4"), ("g", "<i4"),
+                                                            ("h", "<i4")]).tobytes() + body.tobytes()
+    return data
 
 
 # ---------------------------------------------------------------- crafted inputs
@@ -574,6 +639,19 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
         else:
             data, what = mu.mutate(text, rng, mu.TEXT_MUTATORS)
         return Case(case_id, target, what, lambda d: _write(d, "scene.toml", data), root)
+    if target in NATIVE_FORMATS or target == "detection":
+        files = seeds.native(target) if target != "detection" else seeds.detection()
+        base = files[int(rng.integers(0, len(files)))]
+        if crafted:
+            # the text header (prophesee '%', AEDAT '#') or the binary header right after it
+            head, tail = base[:400], base[400:]
+            head, what = mu.mutate(head, rng, (mu.replace_number, mu.overwrite_int, mu.insert_line, mu.delete_line))
+            data, what = head + tail, "header:" + what
+        else:
+            data, what = mu.mutate(base, rng, mu.BYTE_MUTATORS, 2)
+        suffix = {"evt3": ".raw", "evt2": ".raw", "dat": ".dat", "es": ".es", "aedat2": ".aedat",
+                  "aedat3": ".aedat", "detection": ".h5"}[target]
+        return Case(case_id, target, what, lambda d: _write(d, "rec" + suffix, data), root)
     if target == "dataset_spec":
         texts = seeds.dataset_specs()
         text = texts[int(rng.integers(0, len(texts)))]

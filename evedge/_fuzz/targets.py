@@ -139,6 +139,8 @@ def selftest(path: str):
 
 
 _EVENT_FILE_ERROR = "evedge.io:EventFileError"
+#: Registered formats fuzzed through :func:`evedge.io.read_events` (seeds in :mod:`.corpus`).
+NATIVE_FORMATS = ("evt3", "evt2", "dat", "es", "aedat2", "aedat3")
 
 #: name -> Target; the harness fuzzes each with its own corpus (:mod:`evedge._fuzz.corpus`).
 TARGETS = {
@@ -150,6 +152,10 @@ TARGETS = {
     "aedat4": Target("evedge.io:read_aedat4", _EVENT_FILE_ERROR, (), check_recording),
     "scene": Target("evedge.sim.scene:load_scene", "evedge.sim.scene:SceneError"),
     "dataset_spec": Target("evedge.sim.dataset:load_dataset", "evedge.sim.scene:SceneError"),
+    # the formats of evedge.io's registry beyond the four above, read through read_events
+    **{name: Target("evedge.io:read_events", _EVENT_FILE_ERROR, (("format", name),), check_recording)
+       for name in NATIVE_FORMATS},
+    "detection": Target("evedge.io.detection:read_detection", _EVENT_FILE_ERROR),
 }
 
 #: Targets outside the campaign: the harness's own checks.

@@ -2,7 +2,7 @@
 
 Written by ``evedge detect``, read by :func:`read_detection` (and by
 :func:`evedge.io.read_events`, ``evedge info`` and ``evedge grade``). One
-HDF5 file (``format="evedge-detection"``, ``format_version=1``)::
+HDF5 file (``format="evedge-detection"``, ``format_version=2``)::
 
     /events/{x, y, t, p}     the events the method saw (optional: else the source's
                              sha256 and absolute path in the metadata)
@@ -11,7 +11,8 @@ HDF5 file (``format="evedge-detection"``, ``format_version=1``)::
     /edges/{t_us, images}    edge frames (optional)
     attrs: format, format_version, sensor_width, sensor_height,
            metadata (JSON: method, kind, display, params, filter, filter_params,
-           source {path, sha256, n_events, format}, versions, command)
+           source {path, sha256, n_events, format}, versions, command),
+           checksums (sha256 of every dataset and attribute, verified on read)
 
 Written through a temporary file renamed into place; the same inputs give
 the same bytes (no HDF5 timestamps).
@@ -40,13 +41,14 @@ import numpy as np
 
 from ..events import EVENT_DTYPE, Frames, SensorSize, make_events
 from ._atomic import check_output_file, write_hdf5_atomic
+from .._resources import memory_shortfall
 from ._checks import EventFileError
 
 __all__ = ["DETECTION_FORMAT", "DETECTION_FORMAT_VERSION", "LIFETIME_COLUMNS", "Detection", "file_sha256",
            "is_detection_file", "read_detection", "write_detection"]
 
 DETECTION_FORMAT = "evedge-detection"
-DETECTION_FORMAT_VERSION = 1
+DETECTION_FORMAT_VERSION = 2  # 2: sha256 checksums of every dataset and attribute (evedge.io.hdf5.seal)
 
 #: Per-event columns of ``/lifetimes`` (LIFETIME_DTYPE's fields, then the filter's decision).
 LIFETIME_COLUMNS = (("lifetime_us", np.float64), ("vx_px_s", np.float64), ("vy_px_s", np.float64),
@@ -129,6 +131,8 @@ def write_detection(path: str | os.PathLike, detection: Detection) -> Path:
     path = Path(path)
     check_output_file(path, "write_detection")
 
+    from .hdf5 import seal
+
     def fill(f):  # built in memory, then written: HDF5 can crash the process when a disk fills
         f.attrs["format"] = DETECTION_FORMAT
         f.attrs["format_version"] = np.int64(DETECTION_FORMAT_VERSION)
@@ -147,6 +151,7 @@ def write_detection(path: str | os.PathLike, detection: Detection) -> Path:
             g = f.create_group("edges", track_order=True)
             _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
             _dataset(g, "images", np.asarray(detection.edges.images, bool))
+        seal(f)
 
     write_hdf5_atomic(path, fill)
     return path
@@ -167,31 +172,33 @@ def is_detection_file(path: str | os.PathLike) -> bool:
     return (fmt.decode() if isinstance(fmt, bytes) else fmt) == DETECTION_FORMAT
 
 
-def _read(f, path: Path, name: str) -> np.ndarray:
-    try:
-        return np.asarray(f[name][()])
-    except (OSError, KeyError, ValueError) as err:
-        raise EventFileError(f"{path}: dataset {name!r} is unreadable: {err}") from None
-
-
 def read_detection(path: str | os.PathLike) -> Detection:
-    """Read a detection file written by :func:`write_detection` (``evedge detect``).
+    """Read a detection file written by :func:`write_detection` (``evedge detect``), verifying it.
 
     Raises
     ------
     EventFileError
-        Naming the file and the attribute or dataset that is missing or malformed.
+        Naming the file and the attribute or dataset that is missing or
+        malformed: a link or virtual dataset, a declared size the file does not
+        store or the machine cannot hold, a checksum mismatch (a flipped byte),
+        edge maps that are not boolean, any HDF5 read failure.
     """
     import h5py
 
+    from .hdf5 import _check_tree, _checksums, _declared_bytes, _read, _reading
+
     path = Path(path)
+    if path.is_dir():
+        raise EventFileError(f"{path}: is a folder, not a detection file")
     try:
         f = h5py.File(path, "r")
-    except (OSError, IsADirectoryError) as err:
+    except (OSError, KeyError, RuntimeError, ValueError) as err:
         raise EventFileError(f"{path}: not a readable HDF5 file: {err}") from None
-    with f:
+    place: list = []
+    with f, _reading(path, place):
+        place[:] = ["attribute 'format'"]
         fmt = f.attrs.get("format")
-        fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+        fmt = fmt.decode("utf-8", "replace") if isinstance(fmt, bytes) else fmt
         if fmt != DETECTION_FORMAT:
             raise EventFileError(f"{path}: not an evedge detection file (attribute format={fmt!r}, "
                                  f"expected {DETECTION_FORMAT!r})")
@@ -199,44 +206,74 @@ def read_detection(path: str | os.PathLike) -> Detection:
         if not (isinstance(version, (int, np.integer)) and int(version) == DETECTION_FORMAT_VERSION):
             raise EventFileError(f"{path}: detection format_version={version} is not supported "
                                  f"(this reader knows {DETECTION_FORMAT_VERSION})")
+        sums = _checksums(f, path)
+        place[:] = ["the file structure"]
+        _check_tree(f, path, sums)
         try:
             size = SensorSize(int(f.attrs["sensor_width"]), int(f.attrs["sensor_height"]))
             metadata = json.loads(f.attrs.get("metadata", "{}"))
-        except (KeyError, ValueError, TypeError) as err:
+        except (KeyError, ValueError, TypeError, OverflowError) as err:
             raise EventFileError(f"{path}: bad sensor_width/sensor_height/metadata attribute: {err}") from None
-        events = None
+        if not isinstance(metadata, dict):
+            raise EventFileError(f"{path}: attribute 'metadata' must hold a JSON object")
+
+        def dataset(name):
+            obj = f.get(name)
+            if not isinstance(obj, h5py.Dataset):
+                raise EventFileError(f"{path}: {name!r} is missing or not a dataset")
+            return obj
+
+        wanted = []
         if "events" in f:
-            cols = [_read(f, path, f"events/{c}") for c in ("x", "y", "t", "p")]
-            if len({c.shape for c in cols}) != 1:
-                raise EventFileError(f"{path}: events/x, y, t, p have different lengths {[c.shape for c in cols]}")
+            wanted += [f"events/{c}" for c in ("x", "y", "t", "p")]
+        if "lifetimes" in f:
+            wanted += [f"lifetimes/{name}" for name, _ in LIFETIME_COLUMNS]
+        if "edges" in f:
+            wanted += ["edges/t_us", "edges/images"]
+        sets = {name: dataset(name) for name in wanted}
+        lengths = {name: ds.shape for name, ds in sets.items() if name.startswith(("events/", "lifetimes/"))}
+        for name, shape in lengths.items():
+            first = next(iter(lengths.values()))
+            if len(shape) != 1:
+                raise EventFileError(f"{path}: {name} has shape {shape}, expected one row per event")
+            if name.startswith("lifetimes/") and shape != lengths.get(f"lifetimes/{LIFETIME_COLUMNS[0][0]}"):
+                raise EventFileError(f"{path}: {name} has shape {shape}, expected "
+                                     f"{lengths[f'lifetimes/{LIFETIME_COLUMNS[0][0]}']}")
+            if shape != first and name.startswith("events/"):
+                raise EventFileError(f"{path}: events/x, y, t, p have different lengths")
+        if "edges/images" in sets and sets["edges/images"].dtype != np.bool_:
+            raise EventFileError(f"{path}: edges/images has dtype {sets['edges/images'].dtype}, expected bool")
+        if "edges/t_us" in sets and sets["edges/t_us"].dtype.kind not in "iu":
+            raise EventFileError(f"{path}: edges/t_us has dtype {sets['edges/t_us'].dtype}, expected integers")
+        declared = sum(_declared_bytes(ds, path, name) for name, ds in sets.items())
+        short = memory_shortfall(2 * declared, "reading this detection file")
+        if short:
+            raise EventFileError(f"{path}: {short}")
+        data = {name: _read(ds, path, name, sums, place) for name, ds in sets.items()}
+        events = None
+        if "events/x" in data:
             try:
-                events = make_events(*cols)
+                events = make_events(*(data[f"events/{c}"] for c in ("x", "y", "t", "p")))
             except (ValueError, TypeError) as err:
                 raise EventFileError(f"{path}: events: {err}") from None
         lifetimes = None
-        if "lifetimes" in f:
-            n = None
-            lifetimes_cols = {}
-            for name, dtype in LIFETIME_COLUMNS:
-                col = _read(f, path, f"lifetimes/{name}")
-                if col.ndim != 1 or (n is not None and col.shape[0] != n):
-                    raise EventFileError(f"{path}: lifetimes/{name} has shape {col.shape}, expected ({n},)")
-                n = col.shape[0]
-                lifetimes_cols[name] = col.astype(dtype, copy=False)
+        if "lifetimes/kept" in data:
+            n = data["lifetimes/kept"].shape[0]
             if events is not None and n != events.shape[0]:
                 raise EventFileError(f"{path}: {n} lifetime rows for {events.shape[0]} events")
             lifetimes = np.empty(n, dtype=list(LIFETIME_COLUMNS))
-            for name, col in lifetimes_cols.items():
+            for name, dtype in LIFETIME_COLUMNS:
+                col = data[f"lifetimes/{name}"]
+                if (dtype == np.bool_) != (col.dtype == np.bool_):
+                    raise EventFileError(f"{path}: lifetimes/{name} has dtype {col.dtype}, expected {np.dtype(dtype)}")
                 lifetimes[name] = col
         edges = None
-        if "edges" in f:
-            t = _read(f, path, "edges/t_us")
-            images = _read(f, path, "edges/images")
+        if "edges/t_us" in data:
             try:
-                edges = Frames(t, images.astype(bool, copy=False))
+                edges = Frames(data["edges/t_us"], data["edges/images"])
             except ValueError as err:
                 raise EventFileError(f"{path}: edges: {err}") from None
             if len(edges) and edges.images.shape[1:] != size.shape:
-                raise EventFileError(f"{path}: edges/images are {images.shape[2]}x{images.shape[1]}, the sensor "
-                                     f"is {size.width}x{size.height}")
+                raise EventFileError(f"{path}: edges/images are {edges.images.shape[2]}x{edges.images.shape[1]}, "
+                                     f"the sensor is {size.width}x{size.height}")
     return Detection(size, events, lifetimes, edges, metadata)
