@@ -1,8 +1,9 @@
 """A bounded, seeded fuzz run of every public reader: no traceback, crash, hang or unbounded allocation.
 
-120 malformed inputs per target (mutations of the real recordings beside the
-repository when present and of generated files, crafted HDF5/.mat/AEDAT4/PNG
-structures, mutated scenes), each in a worker under a 2 GiB address-space and
+80 malformed inputs per target, 15 targets (mutations of the real recordings
+beside the repository when present and of generated files in every registered
+format, crafted HDF5/.mat/AEDAT4/PNG structures, mutated scenes and dataset
+specs, detection files), each in a worker under a 2 GiB address-space and
 a 20 s time limit. Every failure must be the documented error naming the file;
 a corrupted evedge HDF5 file must never read as a different recording. The
 long campaign is ``benchmarks/fuzz_campaign.py``.
@@ -14,7 +15,7 @@ import pytest
 
 from evedge._fuzz import FAILURES, TARGETS, Limits, run
 
-CASES_PER_TARGET = 120
+CASES_PER_TARGET = 80
 
 
 @pytest.fixture(scope="module")
