@@ -15,7 +15,15 @@ import time
 
 from tqdm import tqdm
 
-from evedge._fuzz import OUTCOMES, TARGETS, Limits, run
+from evedge._fuzz import OUTCOMES, TARGETS, Limits, Tally, run
+
+
+def _table(tally, title: str) -> str:
+    lines = [title, f"{'target':<13}" + "".join(f"{o:>10}" for o in OUTCOMES)]
+    for target, per in tally.counts.items():
+        lines.append(f"{target:<13}" + "".join(f"{per[o]:>10}" for o in OUTCOMES))
+    lines.append(f"{'total':<13}" + "".join(f"{tally.total(o):>10}" for o in OUTCOMES))
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
@@ -26,18 +34,25 @@ def main() -> None:
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per worker")
     ap.add_argument("--time-s", type=float, default=20.0, help="time limit per case")
     ap.add_argument("--show", type=int, default=40, help="failing cases to list")
+    ap.add_argument("--checkpoint", default=None, metavar="FILE",
+                    help="rewrite the counts so far into FILE every 500 cases (a long run can be read while it runs)")
     args = ap.parse_args()
     targets = [t for t in args.targets.split(",") if t]
-    start, cpu = time.monotonic(), time.process_time()
+    start = time.monotonic()
+    partial = Tally()
+
+    def progress(result):
+        bar.update()
+        partial.add(result)
+        if args.checkpoint and partial.total() % 500 == 0:
+            with open(args.checkpoint, "w") as fh:
+                fh.write(_table(partial, f"{partial.total()} cases so far, {time.monotonic() - start:.0f} s"))
+
     with tqdm(total=args.cases * len(targets), unit="case") as bar:
         tally = run(targets, args.cases, args.seed, Limits(int(args.memory_gib * 2**30), args.time_s),
-                    progress=lambda r: bar.update())
-    print(f"\n{tally.total()} cases, seed {args.seed}, {args.memory_gib:g} GiB address space, "
-          f"{args.time_s:g} s per case; {time.monotonic() - start:.0f} s wall")
-    print(f"{'target':<12}" + "".join(f"{o:>10}" for o in OUTCOMES))
-    for target, per in tally.counts.items():
-        print(f"{target:<12}" + "".join(f"{per[o]:>10}" for o in OUTCOMES))
-    print(f"{'total':<12}" + "".join(f"{tally.total(o):>10}" for o in OUTCOMES))
+                    progress=progress)
+    print("\n" + _table(tally, f"{tally.total()} cases, seed {args.seed}, {args.memory_gib:g} GiB address space, "
+                               f"{args.time_s:g} s per case; {time.monotonic() - start:.0f} s wall"))
     for r in tally.failures[: args.show]:
         print(f"{r.outcome:>9} {r.case_id} [{r.mutation[:70]}] {r.detail[:200]}")
 
