@@ -362,7 +362,7 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
         if rows:
             table.extend(rows, experiment=name)
     bar.close()
-    results["verdicts"] = all_verdicts(results)
+    results["verdicts"] = all_verdicts(results, table)
     from .claims import evaluate
 
     results["claims"] = evaluate(table)

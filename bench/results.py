@@ -291,3 +291,28 @@ def leaderboard(table: ResultsTable, *, metric: str = "cdm_median", experiments=
         if vals:
             winners[c] = max(vals)[1]
     return {"columns": cols, "rows": rows, "winners": winners}
+
+
+def cdm_view(table: ResultsTable, experiment: str = "similarity") -> dict:
+    """``{dataset: {reference: {variant: {section: {stat: value}}}}}`` of the CDM summary rows (``cdm_<stat>``).
+
+    The shape :func:`evedge.bench.verdicts.cdm_verdicts` reads, rebuilt from the table.
+    """
+    out: dict = {}
+    for r in table.query(experiment=experiment):
+        if not r["metric"].startswith("cdm_") or r["section"].startswith("frame_"):
+            continue
+        stat = r["metric"][4:]
+        value = int(r["value"]) if stat == "n" else r["value"]
+        (out.setdefault(r["dataset"], {}).setdefault(r["reference"], {}).setdefault(r["variant"], {})
+         .setdefault(r["section"], {}))[stat] = value
+    return out
+
+
+def real_view(table: ResultsTable, experiment: str = "real") -> dict:
+    """``{recording: {variant: {"median": {reference: value}}}}`` (what ``real_verdicts`` reads), from the table."""
+    out: dict = {}
+    for r in table.query(experiment=experiment, metric="cdm_median", section="all"):
+        (out.setdefault(r["dataset"], {}).setdefault(r["variant"], {}).setdefault("median", {}))[r["reference"]] = \
+            r["value"]
+    return out

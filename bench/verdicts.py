@@ -479,12 +479,24 @@ def display_summary(verdicts: list[dict]) -> dict:
     return {"primary": PRIMARY_DISPLAY, "why": PRIMARY_DISPLAY_WHY, "policies": pol, "text": text}
 
 
-def all_verdicts(results: dict) -> list[dict]:
-    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real)."""
-    return (cdm_verdicts(results.get("cdm") or {}, results.get("cdm_diagnostics"))
+def all_verdicts(results: dict, table=None) -> list[dict]:
+    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real).
+
+    With ``table`` (the long :class:`~evedge.bench.results.ResultsTable`), the
+    CDM and real-frame numbers the verdicts decide on are read from the table
+    (:func:`~evedge.bench.results.cdm_view`, :func:`~evedge.bench.results.real_view`);
+    the diagnostics that explain them, the RANSAC study and the lifetime
+    histograms still come from ``results``.
+    """
+    cdm, real = results.get("cdm") or {}, results.get("real") or {}
+    if table is not None:
+        from .results import cdm_view, real_view
+
+        cdm, real = cdm_view(table), real_view(table)
+    return (cdm_verdicts(cdm, results.get("cdm_diagnostics"))
             + intra_verdicts(results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity"))
             + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
-            + real_verdicts(results.get("real") or {}))
+            + real_verdicts(real))
 
 
 def policy_effect(results: dict) -> dict | None:
