@@ -158,7 +158,7 @@ def _ransac(ctx: PaperRun) -> list[dict]:
     ctx.results["truth_tolerance_sensitivity"] = res["truth_tolerance_sensitivity"]
     ctx.results["fmeasure_definitions"] = res["definitions"]
     ctx.figures["ransac"] = res["figures"]
-    return ransac_rows(res["fmeasure"])
+    return ransac_rows(res["fmeasure"], res["truth_tolerance_sensitivity"])
 
 
 def _lifetime(ctx: PaperRun) -> list[dict]:
