@@ -72,6 +72,11 @@ def bench() -> None:
     """The paper's experiments: metrics, figures, tables and an HTML report."""
 
 
+from .sweep_cli import sweep  # noqa: E402  (its heavy imports happen when it runs)
+
+bench.add_command(sweep)
+
+
 def _summary(results: dict, t0: float) -> None:
     # one line per paper claim (evedge.bench.claims); every detailed check is in the report
     for c in results.get("claims", []):
