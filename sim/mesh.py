@@ -11,7 +11,7 @@ pixel is the mean of its ``s x s`` resolved samples (OpenCV ``INTER_AREA``, an e
 filter at an integer factor). The default ``s = 2`` (16 samples per pixel) is the fastest
 setting within the tested tolerance against the exact box renderer (see
 ``tests/sim/test_mesh.py`` and ``benchmarks/bench_render3d.py``); ``s = 3`` (36 samples) is
-about twice as accurate at edges and three times slower. Texture and colour channels are 8 bits:
+about twice as accurate at edges at about half the speed. Texture and colour channels are 8 bits:
 values are quantised to 1/255 before the average.
 
 Per-event truth needs no rendering: :meth:`RasterMeshRenderer.flow_at` casts the event's pixel
@@ -370,7 +370,7 @@ class RasterMeshRenderer:
         of its ``s x s`` (multisample-resolved) samples. 2 (with 4x MSAA: 16 samples per pixel)
         meets the tested tolerance against the exact renderer on flat boxes (edge pixels: mean
         |error| <= 0.012, max <= 0.06; other pixels within 8-bit quantisation); 3 (36 samples)
-        is the more accurate choice (measured about half the edge error) at about a third of
+        is the more accurate choice (measured about half the edge error) at about half
         the speed; 1 is fast but does not meet the tolerance.
     multisample : {4, 0, 2, 8, 16}, default 4
         OpenGL multisamples per sample (resolved by a box filter); 0 for none. The GL stack must
