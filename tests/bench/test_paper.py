@@ -278,3 +278,18 @@ def test_cli_prints_one_line_per_claim(tmp_path):
 
     assert len(lines) == len(CLAIMS)
     assert any("checks hold)" in ln for ln in lines)
+
+
+def test_verdicts_from_the_table_equal_those_from_the_nested_results(tiny_run):
+    from evedge.bench.results import cdm_view, read_results, real_view
+    from evedge.bench.verdicts import all_verdicts
+
+    out, res = tiny_run
+    table = read_results(out / "results.csv")
+    data = json.loads((out / "results.json").read_text())
+    nested = {k: res[k] for k in ("cdm", "real", "fmeasure", "truth_tolerance_sensitivity", "lifetime",
+                                  "lifetime_datasets", "cdm_diagnostics")}
+    assert all_verdicts(nested) == all_verdicts(nested, table) == res["verdicts"]
+    assert cdm_view(table).keys() == res["cdm"].keys()
+    assert {k: {m: v["median"] for m, v in per.items()} for k, per in real_view(table).items()} == \
+        {k: {m: v["median"] for m, v in per.items()} for k, per in data["real"].items()}
