@@ -271,8 +271,11 @@ def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers
         raise DatasetError(f"{out_dir} is being written by another run (its .lock is held)") from None
     try:
         _check_folder(spec, out_dir, layouts)
-        for stale in out_dir.glob("**/.seq_*.tmp"):  # left by a run killed mid-write
-            stale.unlink(missing_ok=True)
+        # temporary files (".<name>.XXXX.tmp", evedge.io._atomic) left by a run killed mid-write;
+        # the lock says no other run is writing here
+        for stale in out_dir.glob("**/.*.tmp"):
+            if stale.is_file():
+                stale.unlink(missing_ok=True)
         rows = {}
         old = read_manifest(out_dir)
         todo, bases = [], {}
