@@ -369,7 +369,7 @@ def write_card(spec: DatasetSpec, out_dir: Path, rows: dict, layouts) -> Path:
         if nums:
             drawn = _fmt(nums[0]) if min(nums) == max(nums) else f"{_fmt(min(nums))} to {_fmt(max(nums))}"
         else:
-            drawn = ", ".join(sorted(set(map(str, flat))))
+            drawn = ", ".join(sorted(set(map(str, flat)))) or "(not used by these sequences' families)"
         lines.append(f"| `{name}` | {spec.parameters[name].describe()} | {drawn} |")
     lines += ["", "## Files", "",
               "- `manifest.jsonl`: one JSON row per sequence (index, name, seed, status, error, n_events, "
