@@ -306,3 +306,13 @@ def test_a_cluster_needs_at_least_one_worker():
     with pytest.raises(ClusterError, match="workers must be an integer >= 1, got 0"):
         with dask_client(workers=0):
             pass
+
+
+def test_run_tasks_bounds_the_tasks_in_flight(client):
+    from evedge.parallel import run_tasks
+
+    got = list(run_tasks(client, abs, [-k for k in range(25)], max_in_flight=3, progress=False))
+    assert sorted(i for i, _, _ in got) == list(range(25))
+    assert all(r == i and e is None for i, r, e in got)
+    with pytest.raises(ValueError, match="max_in_flight must be an integer >= 1"):
+        list(run_tasks(client, abs, [1], max_in_flight=0))
