@@ -24,6 +24,7 @@ import hashlib
 import json
 import os
 import platform
+import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -250,6 +251,8 @@ def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers
     >>> run.failed                                                                      # doctest: +SKIP
     0
     """
+    from tqdm import tqdm
+
     from evedge.parallel import dask_client, run_tasks
 
     layouts = tuple(dict.fromkeys(layouts))
@@ -279,7 +282,9 @@ def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers
         rows = {}
         old = read_manifest(out_dir)
         todo, bases = [], {}
-        for i in range(spec.count):
+        # hashing every kept file is long work on a big dataset: a bar when there is a manifest to check
+        for i in tqdm(range(spec.count), desc=f"verify {spec.name}", unit="seq", file=sys.stderr,
+                      disable=not (progress and old), leave=False):
             expected = set(sequence_files(spec, i, layouts).values())
             source = sequence_files(spec, i, ("evedge",))["evedge"]
             row = old.get(i)
