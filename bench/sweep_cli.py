@@ -8,7 +8,7 @@ import click
 
 
 @click.command("sweep")
-@click.argument("spec", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("spec", type=click.Path(path_type=Path))  # a file or a shipped spec's name
 @click.option("-o", "--out", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Output folder: dataset/, grades/, results.csv, report.md, figures.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,

@@ -101,8 +101,13 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, *, cli
 
 
 def run_tasks(client, fn: Callable, items: Sequence, *, retries: int = 2, progress: bool = True,
-              desc: str = "tasks", unit: str = "task") -> Iterator[tuple[int, Any, BaseException | None]]:
+              desc: str = "tasks", unit: str = "task",
+              max_in_flight: int = 1000) -> Iterator[tuple[int, Any, BaseException | None]]:
     """Run ``fn(item)`` on the cluster for every item; yield ``(index, result, error)`` as they finish.
+
+    At most ``max_in_flight`` tasks are submitted at a time (the next one when
+    one finishes), so a million items cost the scheduler and the client a
+    thousand futures, not a million.
 
     Parameters
     ----------
@@ -117,6 +122,8 @@ def run_tasks(client, fn: Callable, items: Sequence, *, retries: int = 2, progre
         A tqdm bar (stderr) over finished tasks.
     desc, unit : str
         Labels of the bar.
+    max_in_flight : int
+        Tasks submitted but not yet collected, at most.
 
     Yields
     ------
@@ -130,22 +137,35 @@ def run_tasks(client, fn: Callable, items: Sequence, *, retries: int = 2, progre
     from dask.distributed import as_completed
     from tqdm import tqdm
 
+    if isinstance(max_in_flight, bool) or not isinstance(max_in_flight, int) or max_in_flight < 1:
+        raise ValueError(f"run_tasks: max_in_flight must be an integer >= 1, got {max_in_flight!r}")
+    items = list(items)
     if not items:
         return
-    futures = client.map(fn, list(items), retries=retries, pure=False)
-    where = {f.key: i for i, f in enumerate(futures)}
+    where: dict = {}
+
+    def submit(i: int):
+        fut = client.submit(fn, items[i], retries=retries, pure=False)
+        where[fut.key] = (i, fut)
+        return fut
+
+    pending = as_completed([submit(i) for i in range(min(max_in_flight, len(items)))])
+    next_i = min(max_in_flight, len(items))
     try:
-        with tqdm(total=len(futures), desc=desc, unit=unit, disable=not progress, file=sys.stderr) as bar:
-            for fut in as_completed(futures):
+        with tqdm(total=len(items), desc=desc, unit=unit, disable=not progress, file=sys.stderr) as bar:
+            for fut in pending:
                 try:
                     result, error = fut.result(), None
                 except Exception as err:  # the task's own error, or KilledWorker
                     result, error = None, err
                 bar.update(1)
-                i = where[fut.key]
+                i, _ = where.pop(fut.key)
                 fut.release()
+                if next_i < len(items):
+                    pending.add(submit(next_i))
+                    next_i += 1
                 yield i, result, error
     finally:
-        for f in futures:  # an interrupted run cancels what is left
+        for _, f in list(where.values()):  # an interrupted run cancels what is left
             if not f.done():
                 f.cancel()

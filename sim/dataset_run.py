@@ -24,6 +24,7 @@ import hashlib
 import json
 import os
 import platform
+import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -250,6 +251,8 @@ def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers
     >>> run.failed                                                                      # doctest: +SKIP
     0
     """
+    from tqdm import tqdm
+
     from evedge.parallel import dask_client, run_tasks
 
     layouts = tuple(dict.fromkeys(layouts))
@@ -271,12 +274,17 @@ def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers
         raise DatasetError(f"{out_dir} is being written by another run (its .lock is held)") from None
     try:
         _check_folder(spec, out_dir, layouts)
-        for stale in out_dir.glob("**/.seq_*.tmp"):  # left by a run killed mid-write
-            stale.unlink(missing_ok=True)
+        # temporary files (".<name>.XXXX.tmp", evedge.io._atomic) left by a run killed mid-write;
+        # the lock says no other run is writing here
+        for stale in out_dir.glob("**/.*.tmp"):
+            if stale.is_file():
+                stale.unlink(missing_ok=True)
         rows = {}
         old = read_manifest(out_dir)
         todo, bases = [], {}
-        for i in range(spec.count):
+        # hashing every kept file is long work on a big dataset: a bar when there is a manifest to check
+        for i in tqdm(range(spec.count), desc=f"verify {spec.name}", unit="seq", file=sys.stderr,
+                      disable=not (progress and old), leave=False):
             expected = set(sequence_files(spec, i, layouts).values())
             source = sequence_files(spec, i, ("evedge",))["evedge"]
             row = old.get(i)
@@ -366,7 +374,7 @@ def write_card(spec: DatasetSpec, out_dir: Path, rows: dict, layouts) -> Path:
         if nums:
             drawn = _fmt(nums[0]) if min(nums) == max(nums) else f"{_fmt(min(nums))} to {_fmt(max(nums))}"
         else:
-            drawn = ", ".join(sorted(set(map(str, flat))))
+            drawn = ", ".join(sorted(set(map(str, flat)))) or "(not used by these sequences' families)"
         lines.append(f"| `{name}` | {spec.parameters[name].describe()} | {drawn} |")
     lines += ["", "## Files", "",
               "- `manifest.jsonl`: one JSON row per sequence (index, name, seed, status, error, n_events, "

@@ -92,7 +92,8 @@ def write_dsec_events(path: str | os.PathLike, events: np.ndarray) -> Path:
                 opts.update(chunks=(min(t.size, _CHUNK),), compression="gzip", compression_opts=4, shuffle=True)
             for name, col in (("p", events["p"].astype(np.uint8)), ("t", rel.astype(np.uint32)),
                               ("x", events["x"].astype(np.uint16)), ("y", events["y"].astype(np.uint16))):
-                g.create_dataset(name, data=col, **opts)
+                # flushed at once: the file layout must not depend on when the dataset object is freed
+                g.create_dataset(name, data=col, **opts).flush()
             f.create_dataset("ms_to_idx", data=ms_to_idx(rel), track_times=False)
             f.create_dataset("t_offset", data=np.int64(t_offset), track_times=False)
     return path

@@ -54,7 +54,10 @@ def _dataset(group, name: str, data: np.ndarray, chunks) -> None:
     options = {"track_times": False}
     if data.size:  # HDF5 cannot chunk an empty dataset without maxshape; keep it contiguous
         options.update(chunks=chunks, compression="gzip", compression_opts=_GZIP_LEVEL, shuffle=True)
-    group.create_dataset(name, data=data, **options)
+    # flush now: HDF5 writes a chunk (and allocates its file space) when the dataset's chunk cache is
+    # flushed, i.e. when Python frees the dataset object; a reference cycle freed later by the garbage
+    # collector would then move chunks in the file, and the same recording would not give the same bytes
+    group.create_dataset(name, data=data, **options).flush()
 
 
 def _write_stack(parent, name: str, stack: Frames) -> None:

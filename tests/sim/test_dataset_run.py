@@ -208,7 +208,10 @@ def _cli(spec: Path, out: Path, *extra, **kw):
 def test_command_killed_midway_then_rerun_gives_the_same_dataset(reference, tmp_path):
     spec, serial_dir, _ = reference
     data = json.loads(json.dumps(TINY))
-    lines = ["[dataset]", 'name = "tiny"', "seed = 11", "count = 4", "[parameters]"]
+    # 10 sequences, so the kill lands midway however fast they are; sequence i does not depend on the
+    # count, so the first 4 are the reference's
+    count = 10
+    lines = ["[dataset]", 'name = "tiny"', "seed = 11", f"count = {count}", "[parameters]"]
     for k, v in data["parameters"].items():
         lines.append(f"{k} = " + (json.dumps(v) if not isinstance(v, dict) else
                                    "{ " + ", ".join(f"{a} = {json.dumps(b)}" for a, b in v.items()) + " }"))
@@ -225,12 +228,17 @@ def test_command_killed_midway_then_rerun_gives_the_same_dataset(reference, tmp_
         os.killpg(proc.pid, signal.SIGKILL)  # the client and its cluster's processes, at once
         proc.communicate()
     made_before = len(list((out / "sequences").glob("seq_*.h5")))
-    assert 1 <= made_before < 4, "the run was not killed midway"
+    assert 1 <= made_before < count, "the run was not killed midway"
+    # as a kill in the middle of writes would leave them
+    (out / "sequences" / ".seq_00003.h5.abcd.tmp").write_bytes(b"half")
+    (out / ".manifest.jsonl.abcd.tmp").write_text("{")
     proc = _cli(spec_file, out, "--workers", "1")
     stdout, stderr = proc.communicate(timeout=180)
     assert proc.returncode == 0, stderr.decode()
-    assert "4/4 sequences ok" in stdout.decode()
-    assert _files(out) == _files(serial_dir)
+    assert f"{count}/{count} sequences ok" in stdout.decode()
+    files = _files(out)
+    assert len(files) == count
+    assert {k: v for k, v in files.items() if k in _files(serial_dir)} == _files(serial_dir)
     assert not list(out.glob("**/.*.tmp"))
 
 
@@ -298,3 +306,13 @@ def test_a_cluster_needs_at_least_one_worker():
     with pytest.raises(ClusterError, match="workers must be an integer >= 1, got 0"):
         with dask_client(workers=0):
             pass
+
+
+def test_run_tasks_bounds_the_tasks_in_flight(client):
+    from evedge.parallel import run_tasks
+
+    got = list(run_tasks(client, abs, [-k for k in range(25)], max_in_flight=3, progress=False))
+    assert sorted(i for i, _, _ in got) == list(range(25))
+    assert all(r == i and e is None for i, r, e in got)
+    with pytest.raises(ValueError, match="max_in_flight must be an integer >= 1"):
+        list(run_tasks(client, abs, [1], max_in_flight=0))
