@@ -610,7 +610,7 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
             mats = seeds.mats()
             data, what = mu.mutate(mats[int(rng.integers(0, len(mats)))], rng, mu.BYTE_MUTATORS, 2)
         return Case(case_id, target, what, lambda d: _write(d, "events.mat", data), root)
-    if target in ("hdf5", "hdf5_stream"):
+    if target in ("hdf5", "hdf5_stream", "hdf5_any"):
         data, digest = seeds.hdf5()
         if crafted:
             seed_path = seeds.folder / "seed.h5"

@@ -148,6 +148,7 @@ TARGETS = {
     "ecd_folder": Target("evedge.io:read_ecd", _EVENT_FILE_ERROR, (), check_recording),
     "mat": Target("evedge.io:read_mat", _EVENT_FILE_ERROR, (), check_recording),
     "hdf5": Target("evedge.io:read_hdf5", _EVENT_FILE_ERROR, (), check_recording),
+    "hdf5_any": Target("evedge.io:read_events", _EVENT_FILE_ERROR, (), check_recording),
     "hdf5_stream": Target("evedge.io:iter_hdf5_events", _EVENT_FILE_ERROR, (), None, _consume),
     "aedat4": Target("evedge.io:read_aedat4", _EVENT_FILE_ERROR, (), check_recording),
     "scene": Target("evedge.sim.scene:load_scene", "evedge.sim.scene:SceneError"),

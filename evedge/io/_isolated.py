@@ -17,6 +17,7 @@ import pickle
 import resource
 import signal
 import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -24,11 +25,29 @@ from .._resources import available_memory_bytes
 from ._checks import EventFileError
 
 
+def _wait(pid: int, timeout_s: float | None) -> int | None:
+    """The child's wait status, or None after killing it when ``timeout_s`` passed."""
+    if timeout_s is None:
+        return os.waitpid(pid, 0)[1]
+    deadline = time.monotonic() + timeout_s
+    pause = 0.0005
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return status
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return None
+        time.sleep(pause)
+        pause = min(pause * 2, 0.02)
+
+
 class DecoderError(Exception):
     """Raised inside the child for a failure the decoder reported (the message is kept)."""
 
 
-def run_isolated(path: Path, decoder: str, function: Callable, *args):
+def run_isolated(path: Path, decoder: str, function: Callable, *args, timeout_s: float | None = None):
     """Call ``function(*args)`` in a forked child and return its (picklable) result.
 
     Parameters
@@ -40,6 +59,9 @@ def run_isolated(path: Path, decoder: str, function: Callable, *args):
     function : callable
         Runs in the child; an exception it raises comes back as its type name
         and message.
+    timeout_s : float, optional
+        Kill the child after this long (a corrupt size can make a parser loop
+        for minutes) and raise.
 
     Returns
     -------
@@ -80,7 +102,10 @@ def run_isolated(path: Path, decoder: str, function: Callable, *args):
                 code = 0
             finally:
                 os._exit(code)
-        _, status = os.waitpid(pid, 0)
+        status = _wait(pid, timeout_s)
+        if status is None:
+            raise EventFileError(f"{path}: the {decoder} parser did not finish within {timeout_s:g} s on this "
+                                 f"file's structure: it is corrupt")
         if os.WIFSIGNALED(status):
             sig = signal.Signals(os.WTERMSIG(status)).name
             raise EventFileError(f"{path}: the {decoder} decoder crashed ({sig}) on this file: it is corrupt")

@@ -161,15 +161,20 @@ def is_detection_file(path: str | os.PathLike) -> bool:
     """True when ``path`` is an HDF5 file with ``format="evedge-detection"``."""
     import h5py
 
+    from .hdf5 import probe
+
     path = Path(path)
     if not path.is_file():
         return False
+    probe(path)  # a corrupt header can make HDF5 loop for minutes: an EventFileError instead
     try:
         with h5py.File(path, "r") as f:
             fmt = f.attrs.get("format")
-    except OSError:
-        return False
-    return (fmt.decode() if isinstance(fmt, bytes) else fmt) == DETECTION_FORMAT
+    except Exception:  # noqa: BLE001 - h5py raises OSError, KeyError, RuntimeError on corrupt files
+        return False  # not a (readable) detection file; the HDF5 reader names what is wrong
+    if isinstance(fmt, bytes):
+        fmt = fmt.decode("utf-8", "replace")
+    return fmt == DETECTION_FORMAT
 
 
 def read_detection(path: str | os.PathLike) -> Detection:
@@ -185,11 +190,14 @@ def read_detection(path: str | os.PathLike) -> Detection:
     """
     import h5py
 
-    from .hdf5 import _check_tree, _checksums, _declared_bytes, _read, _reading
+    from .hdf5 import _check_tree, _checksums, _declared_bytes, _read, _reading, probe
 
     path = Path(path)
     if path.is_dir():
         raise EventFileError(f"{path}: is a folder, not a detection file")
+    if not path.exists():
+        raise EventFileError(f"{path}: no such file")
+    probe(path)
     try:
         f = h5py.File(path, "r")
     except (OSError, KeyError, RuntimeError, ValueError) as err:

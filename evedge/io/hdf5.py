@@ -201,6 +201,51 @@ def seal(f) -> None:
     f.attrs["checksums"] = json.dumps(sums, sort_keys=True)
 
 
+#: Longest time HDF5 may take to parse a file's structure (attributes, links, dataset headers).
+_PROBE_TIMEOUT_S = 10.0
+
+
+def _probe_structure(path: Path) -> None:
+    """Touch every attribute, link and dataset header (in a child process: see :func:`probe`)."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            def walk(group):
+                for key in group.attrs:
+                    group.attrs[key]
+                for name in group:
+                    if isinstance(group.get(name, getlink=True), h5py.HardLink):
+                        obj = group[name]
+                        if isinstance(obj, h5py.Group):
+                            walk(obj)
+                        elif isinstance(obj, h5py.Dataset):
+                            _ = (obj.shape, obj.dtype, obj.chunks, obj.id.get_storage_size())
+                            for key in obj.attrs:
+                                obj.attrs[key]
+
+            walk(f)
+    except Exception:  # noqa: BLE001 - errors are named by the reader itself; the probe looks for hangs
+        return
+
+
+def probe(path: Path) -> None:
+    """Parse the file's structure in a forked child first, with a time limit.
+
+    A corrupt count in an attribute or object header can make the HDF5
+    library loop for minutes inside one call, which no Python code can
+    interrupt; the child is killed instead and the file named.
+
+    Raises
+    ------
+    EventFileError
+        The structure takes longer than 10 s to parse, or HDF5 crashes on it.
+    """
+    from ._isolated import run_isolated
+
+    run_isolated(path, "HDF5", _probe_structure, path, timeout_s=_PROBE_TIMEOUT_S)
+
+
 @contextmanager
 def _reading(path: Path, place: list):
     """Turn any failure of HDF5 (or of numpy on what it returned) into an EventFileError."""
@@ -218,6 +263,7 @@ def _open(path: Path, place: list):
 
     if path.is_dir():
         raise EventFileError(f"{path}: is a folder, not an HDF5 file")
+    probe(path)
     try:
         f = h5py.File(path, "r")
     except (OSError, KeyError, RuntimeError, ValueError) as err:
