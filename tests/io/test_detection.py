@@ -96,3 +96,21 @@ def test_a_changed_byte_is_a_checksum_error_naming_the_dataset(tmp_path):
         else:
             ref = read_detection(tmp_path / "e.h5")
             assert np.array_equal(got.lifetimes, ref.lifetimes) and np.array_equal(got.events, ref.events)
+
+
+def test_a_header_that_makes_hdf5_loop_is_an_error_within_the_time_limit(tmp_path, monkeypatch):
+    """Found by the fuzz campaign: a count of 2**31 in an object header made h5py spin inside one attribute read."""
+    import struct
+
+    import evedge.io.hdf5 as hdf5
+    from evedge._fuzz.corpus import Seeds
+
+    data = bytearray(Seeds(tmp_path / "seeds").detection()[0])
+    data[416:420] = struct.pack("<I", 2**31)
+    data[341:370] = bytes(29)
+    path = tmp_path / "loop.h5"
+    path.write_bytes(bytes(data))
+    monkeypatch.setattr(hdf5, "_PROBE_TIMEOUT_S", 1.0)
+    for read in (read_detection, read_events):
+        with pytest.raises(EventFileError, match=r"loop\.h5: the HDF5 parser did not finish within 1 s"):
+            read(path)
