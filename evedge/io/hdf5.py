@@ -22,7 +22,9 @@ anything is read, every dataset and attribute is checked against its sha256
 in ``checksums`` (a flipped byte is an error naming the dataset, never a
 different recording), and values are checked for their documented domain.
 Every failure of HDF5 itself (a corrupt B-tree, a failing filter) is an
-:class:`EventFileError` naming the file and the dataset.
+:class:`EventFileError` naming the file and the dataset; the structure is
+first parsed in a forked child with a time limit (:func:`probe`), since a
+corrupt header can make the library loop for minutes inside one call.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """A bounded, seeded fuzz run of every public reader: no traceback, crash, hang or unbounded allocation.
 
-80 malformed inputs per target, 15 targets (mutations of the real recordings
+80 malformed inputs per target, 16 targets (mutations of the real recordings
 beside the repository when present and of generated files in every registered
 format, crafted HDF5/.mat/AEDAT4/PNG structures, mutated scenes and dataset
 specs, detection files), each in a worker under a 2 GiB address-space and
