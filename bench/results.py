@@ -3,7 +3,8 @@
 Columns :data:`COLUMNS`: ``experiment``, ``dataset``, ``reference`` (the truth
 a number is measured against: ``exact``, ``canny_matlab_0.3``, ``truth``,
 ``noise_labels``, or ``""``), ``method`` (a registry name: ``intra``,
-``mueggler``, ``time``, ``count`` or a plug-in's), ``variant`` (the compared
+``mueggler``, ``time``, ``count`` or a plug-in's; in the lifetime experiment also ``truth``, the
+simulator's lifetimes, and ``regions``, how its speed regions were found), ``variant`` (the compared
 configuration's result key, e.g. ``acc_1ms``, or the method itself),
 ``display`` (the display policy, ``""`` when it does not apply), ``section``
 (``slow``, ``fast``, ``all``, a frame index, ...), ``metric`` and ``value``
