@@ -213,6 +213,13 @@ class IntraParams:
         inlier of the plane fitted on its past inliers alone, or when those fix no
         plane (default False = the paper, whose plane passes through the event).
         See the module notes ("noise").
+    burst_startup : bool
+        With ``burst_lifetimes > 0``: an event whose pixel's previous event (same
+        polarity) has no estimate yet is fitted first as a continuation of that
+        burst, and kept so when its own lifetime covers the gap; an event without
+        estimate inside a burst keeps the burst's lifetime for the next ones
+        (default False: such events start a new burst). See the module notes
+        ("start-up").
     """
 
     window_size: int = 5
@@ -230,6 +237,7 @@ class IntraParams:
     per_polarity: bool = True
     split_gap_ratio: float = 0.0
     event_on_plane: bool = False
+    burst_startup: bool = False
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -257,7 +265,7 @@ class IntraParams:
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "event_on_plane"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "event_on_plane", "burst_startup"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{own}.{name} must be a bool, got {getattr(self, name)!r}")
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed"):
@@ -331,7 +339,7 @@ class IntraPixelLifetime:
                       pr.burst_lifetimes, self.sensor_size.width, self.sensor_size.height, pr.per_polarity, pr.window_size // 2, pr.delta_px,
                       pr.inlier_threshold_us, pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability,
                       pr.min_points, pr.min_inliers, pr.refit_intercept, pr.fallback_all_points, pr.seed,
-                      lt, vx, vy, valid, pr.split_gap_ratio, pr.event_on_plane)
+                      lt, vx, vy, valid, pr.split_gap_ratio, pr.event_on_plane, pr.burst_startup)
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time
