@@ -55,9 +55,36 @@ def ref_two_means(dts):
     return [lab == cur for lab in labels]
 
 
+def ref_linkage(points, ratio, min_gap, min_points):
+    """Single linkage in time from the current event (dt = 0); forced while the cluster fixes no plane."""
+    dts = [q[2] for q in points]
+    lo = hi = 0.0
+    big = min_gap
+
+    def degenerate():
+        kept = [(q[0], q[1]) for q in points if lo <= q[2] <= hi]
+        spread = any(a[0] * b[1] - a[1] * b[0] != 0 for a in kept for b in kept)
+        return len(kept) + 1 < min_points or not spread
+
+    while True:
+        below = max([v for v in dts if v < lo], default=-math.inf)
+        above = min([v for v in dts if v > hi], default=math.inf)
+        gap = min(lo - below, above - hi)
+        if not math.isfinite(gap) or not (gap <= ratio * big or degenerate()):
+            break
+        big = max(big, gap)
+        if lo - below <= above - hi:
+            lo = below
+        else:
+            hi = above
+    return [lo <= v <= hi for v in dts]
+
+
 def ref_fit(points, p: IntraParams, seed, g, delta):
     """points: list of (dx, dy, dt). Returns (ok, a, b, inlier flags of the points)."""
     kept = ref_two_means([q[2] for q in points])
+    if p.split_gap_ratio > 0:
+        kept = ref_linkage(points, p.split_gap_ratio, p.inlier_threshold_us, p.min_points)
     res = ref_ransac(points, kept, p, seed, g, delta)
     if res == "degenerate" and p.fallback_all_points:
         res = ref_ransac(points, [True] * len(points), p, seed, g, delta)
@@ -204,7 +231,8 @@ def random_windows(n, side, rng):
     [IntraParams(), IntraParams(stop_probability=1.0, max_trials=7, min_inliers=3, min_points=3,
                                 fallback_all_points=False),
      IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
-     IntraParams(event_on_plane=True)],
+     IntraParams(event_on_plane=True),
+     IntraParams(split_gap_ratio=3.0, event_on_plane=True)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
