@@ -505,7 +505,7 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
 @njit(cache=True)
 def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, per_pol, half, delta,
                   thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
-                  out_lt, out_vx, out_vy, out_valid, gap_ratio, on_plane, startup):
+                  out_lt, out_vx, out_vy, out_valid, gap_ratio, on_plane, startup, border):
     """SAE update, window gathering, 2-means and RANSAC for each event in order.
 
     ``sae`` is the flat SAE (``(plane * height + y) * width + x``), updated in place;
@@ -529,6 +529,10 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
     otherwise it is fitted again as a new burst. An event without estimate
     inside a burst leaves the burst's lifetime in ``prev_lt`` (the next events
     still continue the burst).
+
+    Border rule (``border > 0``): an event closer than ``border`` px to the sensor
+    edge (its window is clipped) is reported without estimate; its fit still
+    sets the burst state of its pixel, as any other event's.
     """
     side = 2 * half + 1
     wf, wi = _scratch(side * side)
@@ -567,7 +571,13 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
             if ok and t_ev - prev_t[si] <= burst * math.sqrt(a * a + b * b):
                 cont = True  # the continuation fits and its own lifetime covers the gap: keep it
                 break
-        if ok:
+        # border rule: the fit still feeds the burst state below, but is not reported
+        if ok and (xk < border or yk < border or xk >= width - border or yk >= height - border):
+            out_lt[k] = math.sqrt(a * a + b * b)
+            out_vx[k] = np.nan
+            out_vy[k] = np.nan
+            out_valid[k] = False
+        elif ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
             out_vx[k] = a / g2 * 1e6
@@ -582,6 +592,8 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
         # start-up rule: an event without estimate inside a burst keeps the burst's lifetime
         if ok or not (startup and cont):
             prev_lt[si] = out_lt[k]
+        if not out_valid[k]:
+            out_lt[k] = np.nan  # a border event's lifetime was kept above only for its burst state
         prev_pol[si] = pk
 
 

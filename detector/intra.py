@@ -220,6 +220,11 @@ class IntraParams:
         estimate inside a burst keeps the burst's lifetime for the next ones
         (default False: such events start a new burst). See the module notes
         ("start-up").
+    border_px : int
+        >= 0. Events closer than this to the sensor's edge, whose window is
+        clipped, get no estimate (their fit still sets their pixel's burst
+        state); Mueggler et al.'s code skips 2 px. Default 0 (the paper says
+        nothing). See the module notes ("border").
     """
 
     window_size: int = 5
@@ -238,6 +243,7 @@ class IntraParams:
     split_gap_ratio: float = 0.0
     event_on_plane: bool = False
     burst_startup: bool = False
+    border_px: int = 0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -262,13 +268,14 @@ class IntraParams:
                 raise ValueError(f"{own}.{name} must be <= window_size**2 = {self.window_size**2}, got {value}")
         check_positive(own, "burst_lifetimes", self.burst_lifetimes, allow_zero=True)
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
+        check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
         for name in ("per_polarity", "refit_intercept", "fallback_all_points", "event_on_plane", "burst_startup"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{own}.{name} must be a bool, got {getattr(self, name)!r}")
-        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed"):
+        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio"):
@@ -339,7 +346,7 @@ class IntraPixelLifetime:
                       pr.burst_lifetimes, self.sensor_size.width, self.sensor_size.height, pr.per_polarity, pr.window_size // 2, pr.delta_px,
                       pr.inlier_threshold_us, pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability,
                       pr.min_points, pr.min_inliers, pr.refit_intercept, pr.fallback_all_points, pr.seed,
-                      lt, vx, vy, valid, pr.split_gap_ratio, pr.event_on_plane, pr.burst_startup)
+                      lt, vx, vy, valid, pr.split_gap_ratio, pr.event_on_plane, pr.burst_startup, pr.border_px)
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time

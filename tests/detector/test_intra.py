@@ -626,3 +626,16 @@ def test_linkage_split_keeps_a_jittered_ramp_whole():
     fit = fit_window(w, p)
     assert fit.ok and fit.inliers[:, :3].sum() >= 14
     assert fit.lifetime_us == pytest.approx(1000.0, rel=0.03)
+
+
+def test_border_px_reports_no_estimate_near_the_edge_and_changes_nothing_else():
+    """Events closer than border_px to the sensor edge get no estimate; every other output is unchanged
+    (the border events' fits still set their pixels' burst state)."""
+    ev, _ = _burst_edge()
+    size = SensorSize(24, 24)
+    a = estimate_lifetimes(ev, size, IntraParams())
+    b = estimate_lifetimes(ev, size, IntraParams(border_px=2))
+    near = (ev["x"] < 2) | (ev["y"] < 2) | (ev["x"] >= 22) | (ev["y"] >= 22)
+    assert a["valid"][near].any() and not b["valid"][near].any()
+    assert np.isnan(b["lifetime_us"][near]).all()
+    assert a[~near].tobytes() == b[~near].tobytes()
