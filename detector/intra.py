@@ -156,7 +156,8 @@ from ._intra_kernels import _fit_windows, _intra_stream
 from .result import empty_lifetimes
 from .sae import SurfaceOfActiveEvents
 
-__all__ = ["IntraParams", "IntraPixelLifetime", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows"]
+__all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows",
+           "robust_params"]
 
 
 @dataclass(frozen=True)
@@ -218,8 +219,8 @@ class IntraParams:
         polarity) has no estimate yet is fitted first as a continuation of that
         burst, and kept so when its own lifetime covers the gap; an event without
         estimate inside a burst keeps the burst's lifetime for the next ones
-        (default False: such events start a new burst). See the module notes
-        ("start-up").
+        (default True; False: such events start a new burst, as before). See
+        the module notes ("start-up").
     border_px : int
         >= 0. Events closer than this to the sensor's edge, whose window is
         clipped, get no estimate (their fit still sets their pixel's burst
@@ -242,7 +243,7 @@ class IntraParams:
     per_polarity: bool = True
     split_gap_ratio: float = 0.0
     event_on_plane: bool = False
-    burst_startup: bool = False
+    burst_startup: bool = True
     border_px: int = 0
 
     def __post_init__(self) -> None:
@@ -280,6 +281,22 @@ class IntraParams:
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio"):
             object.__setattr__(self, name, float(getattr(self, name)))
+
+
+#: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
+ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": True, "burst_startup": True}
+
+
+def robust_params(**overrides) -> IntraParams:
+    """:class:`IntraParams` with the robustness options on (:data:`ROBUST`), plus any ``overrides``.
+
+    Examples
+    --------
+    >>> p = robust_params(seed=3)
+    >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed)
+    (3.0, True, True, 3)
+    """
+    return IntraParams(**{**ROBUST, **overrides})
 
 
 def _check_params(params) -> IntraParams:
