@@ -162,7 +162,7 @@ def ref_event_on_plane(past, a_all, b_all, p, delta):
         return False
     (a, b, c), *_ = np.linalg.lstsq(X, T, rcond=None)
     r = max(0.0, abs(c) - delta * (abs(a) + abs(b)))
-    return r <= p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    return r <= p.event_on_plane * (p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b))
 
 
 def ref_stream(events, size, p: IntraParams):
@@ -248,8 +248,8 @@ def random_windows(n, side, rng):
     [IntraParams(), IntraParams(stop_probability=1.0, max_trials=7, min_inliers=3, min_points=3,
                                 fallback_all_points=False),
      IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
-     IntraParams(event_on_plane=True),
-     IntraParams(split_gap_ratio=3.0, event_on_plane=True)],
+     IntraParams(event_on_plane=1.0),
+     IntraParams(split_gap_ratio=3.0, event_on_plane=1.0)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
@@ -546,7 +546,7 @@ def test_gap_split_drops_the_middle_stale_level():
     # the paper's split keeps the column one period old (dt = -19000) with the current ones
     keep = ref_two_means([v for v in w.ravel()[np.arange(25) != 12] if not np.isnan(v)])
     assert not all(keep) and sum(keep) == 14 + 5  # 3 current columns (less the centre) + the middle stale one
-    fit = fit_window(w, IntraParams(split_gap_ratio=1.0, event_on_plane=True))
+    fit = fit_window(w, IntraParams(split_gap_ratio=1.0, event_on_plane=1.0))
     assert fit.ok
     assert fit.lifetime_us == pytest.approx(1000.0, rel=1e-9)
     assert not fit.inliers[:, 3:].any()  # no stale pixel is an inlier
@@ -568,9 +568,9 @@ def test_event_on_plane_rejects_an_event_off_its_neighbours_plane():
     w[:, 3:] = np.nan
     w -= 30_000.0
     w[2, 2] = 0.0  # the current event, long after
-    assert not fit_window(w, IntraParams(event_on_plane=True)).ok
+    assert not fit_window(w, IntraParams(event_on_plane=1.0)).ok
     w[2, 2] = -30_000.0  # on the plane: accepted
-    assert fit_window(w, IntraParams(event_on_plane=True)).ok
+    assert fit_window(w, IntraParams(event_on_plane=1.0)).ok
 
 
 def test_event_on_plane_noise_only_stream():
@@ -584,7 +584,7 @@ def test_event_on_plane_noise_only_stream():
     from evedge.detector.pipeline import detect
 
     off = detect(ev, size, params=IntraParams()).lifetimes["valid"]
-    on = detect(ev, size, params=IntraParams(event_on_plane=True)).lifetimes["valid"]
+    on = detect(ev, size, params=IntraParams(event_on_plane=1.0)).lifetimes["valid"]
     assert on.mean() < 0.10 < off.mean()
 
 
@@ -621,7 +621,7 @@ def test_burst_startup_on_the_first_passage():
 
 def test_burst_startup_streaming_equals_one_shot():
     ev, _ = _burst_edge()
-    p = IntraParams(burst_startup=True, split_gap_ratio=3.0, event_on_plane=True)
+    p = IntraParams(burst_startup=True, split_gap_ratio=3.0, event_on_plane=1.0)
     want = estimate_lifetimes(ev, SensorSize(24, 24), p)
     est = IntraPixelLifetime(SensorSize(24, 24), p)
     parts = [est.process(ev[i:i + 97]) for i in range(0, ev.size, 97)]
