@@ -21,9 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration import CameraCalibration
 from ..events import Frames, Recording, SensorSize
 from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError, finish_events, locate_index
+from .registry import Format, register_format
 
 FORMAT_NAME = "evedge"
 FORMAT_VERSION = 1
@@ -86,6 +88,9 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
             f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
             f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
             f.attrs["metadata"] = metadata
+            if recording.calibration is not None:
+                # fx fy cx cy k1 k2 p1 p2 k3, as in calib.txt
+                f.attrs["calibration"] = np.asarray(recording.calibration.as_list(), dtype=np.float64)
             ev = recording.events
             group = f.create_group("events", track_order=True)
             chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
@@ -103,6 +108,14 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
                 _write_stack(f, "frames", recording.frames)
             if recording.edges is not None:
                 _write_stack(f, "edges", recording.edges)
+            if recording.maps:
+                group = f.create_group("maps", track_order=True)
+                for name, stack in recording.maps.items():
+                    _write_stack(group, name, stack)
+            if recording.imu is not None:
+                group = f.create_group("imu", track_order=True)
+                for name in recording.imu.dtype.names:
+                    _dataset(group, name, np.ascontiguousarray(recording.imu[name]), (max(1, min(recording.imu.size, 4096)),))
     return path
 
 
@@ -267,6 +280,25 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
                 truth[name] = col
         frames = _stack(f, path, "frames", sensor)
         edges = _stack(f, path, "edges", sensor)
+        maps = {}
+        if "maps" in f:
+            group = _group(f, path, "maps")
+            maps = {name: _stack(group, path, name, sensor) for name in group}
+        imu = None
+        if "imu" in f:
+            group = _group(f, path, "imu")
+            cols = [(name, _dataset_in(group, path, name)[()]) for name in group]
+            if not cols or any(c.ndim != 1 or c.shape != cols[0][1].shape for _, c in cols) or "t_us" not in dict(cols):
+                raise EventFileError(f"{path}: group 'imu' needs 1-D datasets of one length, t_us among them")
+            imu = np.empty(cols[0][1].shape[0], dtype=[(n, c.dtype) for n, c in cols])
+            for name, col in cols:
+                imu[name] = col
+        calibration = None
+        if "calibration" in f.attrs:
+            try:
+                calibration = CameraCalibration(*np.asarray(f.attrs["calibration"], dtype=np.float64).reshape(9).tolist())
+            except (TypeError, ValueError) as err:
+                raise EventFileError(f"{path}: attribute 'calibration' is not 9 numbers fx fy cx cy k1 k2 p1 p2 k3: {err}") from None
     order = None
     if sort:
         order = np.argsort(t, kind="stable")
@@ -276,7 +308,8 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
     metadata.update({"source": str(path), "format": "evedge-hdf5", "sensor_size_from": "file metadata"})
     if was_sorted:
         metadata["sorted_on_load"] = True
-    return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata)
+    return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata,
+                     calibration=calibration, maps=maps, imu=imu)
 
 
 def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> Iterator[np.ndarray]:
@@ -320,3 +353,10 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
             last_t = int(t[-1]) if t.size else last_t
             yield events
 
+
+
+register_format(Format(
+    "hdf5", "evedge HDF5 (events, truth, frames, edge maps, metadata)",
+    extensions=(".h5", ".hdf5"), read=read_hdf5, write=write_recording,
+    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"), holds=("frames", "truth", "edges"),
+))
