@@ -35,6 +35,7 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._buffer_kernels import _buffer_scan, _n_decided
+from ._tiles import check_n_tiles, filter_tiled
 from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
 
 _MODES = ("buffered", "causal")
@@ -163,7 +164,7 @@ class EventBuffer:
         return out
 
 
-def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None = None) -> np.ndarray:
+def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None = None, *, n_tiles: int = 1) -> np.ndarray:
     """One-shot event buffer.
 
     Parameters
@@ -173,6 +174,9 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     sensor_size : SensorSize or (width, height)
     params : BufferParams, optional
         Defaults: ``tau_min_us=10_000``, buffered form.
+    n_tiles : int
+        Row strips processed in parallel (numba threads; default 1). Any value
+        gives the same decisions (:mod:`evedge.detector._tiles`).
 
     Returns
     -------
@@ -183,8 +187,11 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     params = _check_params(params)
     check_events(events, sensor_size)
     w, h = sensor_size.width, sensor_size.height
+    n_tiles = check_n_tiles(n_tiles, h)
     x, y, t, p = columns(events)
     n = events.shape[0]
+    if n_tiles > 1:
+        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles)
     supported = np.zeros(n, dtype=bool)
     _buffer_scan(x, y, t, p, np.full(n, -1, dtype=np.int64), supported, 0, 0,
                  np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),

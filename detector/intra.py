@@ -153,10 +153,13 @@ import numpy as np
 
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream
+from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
 from .sae import SurfaceOfActiveEvents
 
 __all__ = ["IntraParams", "IntraPixelLifetime", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows"]
+
+_NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
 
 
 @dataclass(frozen=True)
@@ -266,6 +269,9 @@ class IntraPixelLifetime:
     ----------
     sensor_size : SensorSize or (width, height)
     params : IntraParams, optional
+    n_tiles : int
+        Row strips processed in parallel (numba threads; default 1, serial). Any
+        value gives the same bytes (:mod:`evedge.detector._tiles`).
 
     Attributes
     ----------
@@ -282,9 +288,10 @@ class IntraPixelLifetime:
     previous event time, polarity and lifetime, carries across chunks).
     """
 
-    def __init__(self, sensor_size, params: IntraParams | None = None) -> None:
+    def __init__(self, sensor_size, params: IntraParams | None = None, *, n_tiles: int = 1) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         self.params = _check_params(params)
+        self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
         self.reset()
 
@@ -311,11 +318,20 @@ class IntraPixelLifetime:
         vy = np.empty(n)
         valid = np.empty(n, dtype=bool)
         pr = self.params
-        _intra_stream(x, y, t, p, self._n_seen, self.sae.times_us.reshape(-1), self._prev_t, self._prev_lt, self._prev_pol,
-                      pr.burst_lifetimes, self.sensor_size.width, self.sensor_size.height, pr.per_polarity, pr.window_size // 2, pr.delta_px,
-                      pr.inlier_threshold_us, pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability,
-                      pr.min_points, pr.min_inliers, pr.refit_intercept, pr.fallback_all_points, pr.seed,
-                      lt, vx, vy, valid)
+        w, h = self.sensor_size.width, self.sensor_size.height
+        args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
+                pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
+                pr.refit_intercept, pr.fallback_all_points, pr.seed)
+        sae = self.sae.times_us
+        if self.n_tiles == 1:
+            burst, per_pol, half = args[:3]
+            _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
+                          self._prev_pol, burst, w, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
+                          lt, vx, vy, valid)
+        else:
+            state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
+                     self._prev_pol.reshape(sae.shape))
+            intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid))
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time
@@ -326,7 +342,8 @@ class IntraPixelLifetime:
         return out
 
 
-def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | None = None) -> np.ndarray:
+def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | None = None, *,
+                       n_tiles: int = 1) -> np.ndarray:
     """One-shot intra-pixel-area lifetime estimation.
 
     Parameters
@@ -337,13 +354,15 @@ def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | No
         or :func:`evedge.detector.pipeline.detect`).
     sensor_size : SensorSize or (width, height)
     params : IntraParams, optional
+    n_tiles : int
+        Row strips run in parallel (same bytes for any value; see :class:`IntraPixelLifetime`).
 
     Returns
     -------
     numpy.ndarray
         :data:`~evedge.detector.result.LIFETIME_DTYPE`, aligned with ``events``.
     """
-    return IntraPixelLifetime(sensor_size, params).process(events)
+    return IntraPixelLifetime(sensor_size, params, n_tiles=n_tiles).process(events)
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,7 @@ def _check_method(method: str, use_buffer) -> bool:
 
 
 def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_params: BufferParams | None = None,
-           params=None, use_buffer: bool | None = None) -> DetectionResult:
+           params=None, use_buffer: bool | None = None, n_tiles: int = 1) -> DetectionResult:
     """Run the event buffer and a lifetime estimator on a whole event array.
 
     Parameters
@@ -76,6 +76,9 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     use_buffer : bool, optional
         Default: True for ``intra`` (the paper's pipeline), False for
         ``mueggler`` (its original has no such filter).
+    n_tiles : int
+        Row strips the buffer and the ``intra`` estimator run on in parallel
+        (default 1); any value gives the same bytes.
 
     Returns
     -------
@@ -85,12 +88,13 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     sensor_size = check_sensor_size(sensor_size)
     buffered = _check_method(method, use_buffer)
     check_events(events, sensor_size)
-    kept = filter_events(events, sensor_size, buffer_params) if buffered else np.ones(events.shape[0], bool)
+    kept = (filter_events(events, sensor_size, buffer_params, n_tiles=n_tiles) if buffered
+            else np.ones(events.shape[0], bool))
     sub = events[kept] if buffered else events
     if method == "intra":
         if params is not None and not isinstance(params, IntraParams):
             raise TypeError(f"params: method 'intra' takes IntraParams, got {type(params).__name__}")
-        est = IntraPixelLifetime(sensor_size, params).process(sub)
+        est = IntraPixelLifetime(sensor_size, params, n_tiles=n_tiles).process(sub)
     else:
         est = _mueggler().estimate_lifetimes_mueggler(sub, sensor_size, params)
     lifetimes = empty_lifetimes(events.shape[0])
