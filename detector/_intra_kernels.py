@@ -95,8 +95,94 @@ def _scratch(nn):
 
 
 @njit(cache=True)
+def _gap_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
+    """Split the paper's kept cluster further while a clear time gap remains (``split_gap_ratio``).
+
+    The paper's 2-means (initial centroids: the window minimum and the current
+    time) splits a window with *stale levels* badly: a pixel that skipped the
+    current edge passage keeps the time of one or two passages before, and with
+    two stale levels the middle one lies nearer the current centroid than the
+    oldest one and joins the current cluster. Here 2-means runs again on the
+    cluster the paper kept (``wi[_LAB] == 1``; same initial centroids, taken
+    within that cluster), and again on what that keeps, as long as each split is
+    *clear*: the time gap between the kept part (the current event included)
+    and the dropped part exceeds both ``gap_ratio`` times the kept part's own
+    time span and ``min_gap_us``, and the kept part keeps at least ``min_points``
+    points (current event included; a smaller one could not be fitted, and its
+    time span says nothing). On 1-D data a 2-means split is a threshold,
+    so the kept cluster stays an interval ``lo <= dt <= hi``; ``wi[_LAB, i]``
+    is set to 1 inside. Returns True when the cluster shrank.
+    """
+    lo = 0.0
+    hi = 0.0
+    for i in range(n):
+        if wi[_LAB, i] == 1:
+            lo = min(lo, wf[_DT, i])
+            hi = max(hi, wf[_DT, i])
+    shrank = False
+    for _ in range(n + 1):
+        if lo == hi:
+            break
+        c0 = lo
+        c1 = 0.0
+        n_up = -1
+        mid = 0.0
+        for _ in range(100):
+            mid = 0.5 * (c0 + c1)
+            s0 = 0.0
+            s1 = 0.0
+            k0 = 0
+            k1 = 0
+            for q in range(n + 1):
+                v = wf[_DT, q] if q < n else 0.0
+                if not (lo <= v <= hi):
+                    continue
+                if v >= mid:  # ties join the upper centroid, as in the paper's split
+                    s1 += v
+                    k1 += 1
+                else:
+                    s0 += v
+                    k0 += 1
+            if k1 == n_up or k0 == 0 or k1 == 0:
+                break
+            n_up = k1
+            c0 = s0 / k0
+            c1 = s1 / k1
+        keep_up = 0.0 >= mid
+        kmin = 0.0
+        kmax = 0.0
+        nk = 1
+        dmin = np.inf
+        dmax = -np.inf
+        for i in range(n):
+            v = wf[_DT, i]
+            if not (lo <= v <= hi):
+                continue
+            if (v >= mid) == keep_up:
+                nk += 1
+                kmin = min(kmin, v)
+                kmax = max(kmax, v)
+            else:
+                dmin = min(dmin, v)
+                dmax = max(dmax, v)
+        if not math.isfinite(dmin):
+            break  # nothing to drop
+        gap = kmin - dmax if keep_up else dmin - kmax
+        if not (gap > gap_ratio * (kmax - kmin) and gap > min_gap_us and nk >= min_points):
+            break
+        lo = kmin
+        hi = kmax
+        shrank = True
+    if shrank:
+        for i in range(n):
+            v = wf[_DT, i]
+            wi[_LAB, i] = 1 if lo <= v <= hi else 0
+    return shrank
+
+
+@njit(cache=True)
 def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
-                min_inliers, intercept, fallback):
+                min_inliers, intercept, fallback, gap_ratio, on_plane):
     """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
 
     The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
@@ -189,6 +275,8 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
                 c1 = s1 / n1
         for i in range(n):
             wi[_LAB, i] = 1 if wi[_LAB, i] == cur else 0
+    if gap_ratio > 0.0:
+        _gap_split(wf, wi, n, gap_ratio, thr_us, min_points)
 
     # ---- RANSAC on the kept cluster; a second attempt on all points when it is degenerate
     nin = -1
@@ -331,6 +419,7 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             syy += yq * wf[_KY, q]
             sxt += xq * wf[_KT, q]
             syt += yq * wf[_KT, q]
+        on = not (on_plane and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_rel)
         if intercept:
             # centred sums: least squares with a free time offset (the current event
             # becomes one point among the inliers instead of a fixed anchor)
@@ -348,8 +437,42 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
             # a flat plane (all inliers at the current time): no finite lifetime
             return False, np.nan, np.nan
+        if not on:
+            return False, np.nan, np.nan
         return True, a, b
     return False, np.nan, np.nan
+
+
+@njit(cache=True)
+def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_rel):
+    """Whether the current event (the origin) lies on the plane of its past inliers (``event_on_plane``).
+
+    ``s*`` are the raw (uncentred) least-squares sums over the winner's inliers,
+    the current event included (it adds 1 to ``s1`` and 0 to the others). The
+    plane ``dt = a dx + b dy + c`` is fitted on the *past* inliers alone (leave the
+    current event out: a fit that includes it is pulled towards it); the event is
+    on it when its intra-pixel residual ``max(0, |c| - delta (|a| + |b|))`` is
+    within the inlier threshold of that plane. False when the past inliers
+    alone fix no plane (all on one line). A background-activity event fired
+    after an edge passed its pixel (or before it arrives) is off that plane by
+    the time between them: no estimate.
+    """
+    n = s1 - 1.0
+    if n < 3.0:
+        return False
+    cxx = sxx - sx * sx / n
+    cxy = sxy - sx * sy / n
+    cyy = syy - sy * sy / n
+    cxt = sxt - sx * st / n
+    cyt = syt - sy * st / n
+    det = cxx * cyy - cxy * cxy
+    if not det > 1e-9 * (cxx * cyy) or not det > 0.0:
+        return False
+    a = (cxt * cyy - cyt * cxy) / det
+    b = (cyt * cxx - cxt * cxy) / det
+    c = (st - a * sx - b * sy) / n
+    r = max(0.0, abs(c) - delta * (abs(a) + abs(b)))
+    return r <= thr_us + thr_rel * math.sqrt(a * a + b * b)
 
 
 @njit(cache=True)
@@ -361,7 +484,7 @@ def _log_fail(stop_prob):
 @njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, row0, rows, own_lo, own_hi,
                   dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers,
-                  intercept, fallback, seed, out_lt, out_vx, out_vy, out_valid):
+                  intercept, fallback, seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     The state covers sensor rows ``row0 .. row0 + rows - 1`` (the whole sensor, or a
@@ -440,7 +563,8 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 big = max(big, abs(d))
                 n += 1
         ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback)
+                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
+                               gap_ratio, on_plane)
         if ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
@@ -460,7 +584,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl):
+                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane):
     """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -490,7 +614,8 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
             n += 1
         # float times: 2-means sums them in float64 (exact=False)
         ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback)
+                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
+                               gap_ratio, on_plane)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

@@ -114,7 +114,7 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 @njit(parallel=True, cache=True)
 def _intra_parallel(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo, own_hi, dec,
                     burst, width, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                    min_inliers, intercept, fallback, seed, out_lt, out_vx, out_vy, out_valid):
+                    min_inliers, intercept, fallback, seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid):
     """Every strip on its own thread; a halo event waits for its owner's decision."""
     for s in prange(lo.shape[0]):
         o0 = off[s]
@@ -122,13 +122,13 @@ def _intra_parallel(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev
         _intra_stream(x, y, t, p, idx[starts[s]:starts[s + 1]], 0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
                       prev_pol[o0:o1], burst, width, lo[s], rows[s], own_lo[s], own_hi[s], dec, True, per_pol, half,
                       delta, thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-                      seed, out_lt, out_vx, out_vy, out_valid)
+                      seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid)
 
 
 @njit(cache=True)
 def _intra_interleaved(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo, own_hi,
                        dec, burst, width, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                       min_inliers, intercept, fallback, seed, out_lt, out_vx, out_vy, out_valid):
+                       min_inliers, intercept, fallback, seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid):
     """The strips on one thread, each run until it needs a decision not yet taken (more strips than threads).
 
     The strip holding the earliest unprocessed event never waits (a decision it
@@ -146,8 +146,8 @@ def _intra_interleaved(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, p
                 cursor[s] = _intra_stream(x, y, t, p, seg, cursor[s], g0, sae[o0:o1], prev_t[o0:o1],
                                           prev_lt[o0:o1], prev_pol[o0:o1], burst, width, lo[s], rows[s], own_lo[s],
                                           own_hi[s], dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials,
-                                          stop_prob, min_points, min_inliers, intercept, fallback, seed, out_lt,
-                                          out_vx, out_vy, out_valid)
+                                          stop_prob, min_points, min_inliers, intercept, fallback, seed,
+                                          gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid)
                 done = done and cursor[s] == seg.shape[0]
         if done:
             return
@@ -158,9 +158,9 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
-    ``burst`` to ``seed`` without the geometry (``burst, per_pol, half, delta, thr_us,
-    thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-    seed``); ``outs`` is ``(lt, vx, vy, valid)``. The strips run on their own
+    ``burst`` to ``on_plane`` without the geometry (``burst, per_pol, half, delta,
+    thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
+    fallback, seed, gap_ratio, on_plane``); ``outs`` is ``(lt, vx, vy, valid)``. The strips run on their own
     threads when numba has that many, else interleaved on one.
     """
     half = kernel_args[2]

@@ -71,6 +71,10 @@ def _atomic(path: Path, write) -> None:
         raise
 
 
+#: Methods that draw random numbers (RANSAC), hence take --seed.
+_SEEDED = ("intra", "mueggler")
+
+
 def _lifetimes_intra(events, sensor, use_buffer, seed, quiet):
     from tqdm import tqdm
 
@@ -146,7 +150,9 @@ def _write_pngs(folder: Path, times, frames, quiet) -> None:
 @click.option("--buffer/--no-buffer", "use_buffer", default=None,
               help="Event-buffer noise filter (default: on for intra, off for mueggler).")
 @click.option("--clear-behind", is_flag=True, help="Clear the pixel behind each event (Mueggler's display).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="RANSAC seed (intra).")
+@click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
+              help="RANSAC seed of the lifetime methods (intra, mueggler; default 0); refused by time and count, "
+                   "which draw no random numbers.")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, sort, use_buffer, clear_behind, seed,
            quiet):
@@ -158,6 +164,10 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, so
     """
     from evedge.io import read_events
 
+    if seed is not None and method not in _SEEDED:
+        raise click.BadParameter(f"method {method!r} draws no random numbers, so a seed would change nothing; "
+                                 f"--seed applies to {' and '.join(_SEEDED)}", param_hint="'--seed'")
+    seed = 0 if seed is None else seed
     try:
         rec = read_events(events_file, sensor_size=sensor, sort=sort)
     except (ValueError, TypeError, OSError) as err:
@@ -184,7 +194,9 @@ def detect(events_file, out, method, fps, times, window_ms, n_events, sensor, so
         else:
             from .pipeline import detect as run
 
-            res = run(events, size, method="mueggler", use_buffer=use_buffer)
+            from .mueggler import MuegglerParams
+
+            res = run(events, size, method="mueggler", use_buffer=use_buffer, params=MuegglerParams(seed=seed))
             lifetimes, kept = res.lifetimes, res.kept
         frames = edge_frames(events[kept], lifetimes[kept], size, frame_t, clear_behind=clear_behind)
     elif method == "time":

@@ -12,6 +12,17 @@ instead (the pixel's newest event is then one with no edge evidence).
 the life of the 8-neighbour behind it, opposite its normal flow rounded to 45
 degrees, which thins edges left behind by fast motion.
 
+``burst_lifetimes > 0`` (our addition, burst-aware display): an edge crossing a
+pixel fires a *burst* of events (one per threshold its contrast spans), and with
+expiry counted from each event's own time the pixel stays alive for the
+lifetime after the burst's *last* event, so a moving edge leaves a trail about
+two pixels thick. With it, a valid event continues its pixel's burst when the
+pixel's newest valid event has the same polarity and fired at most
+``burst_lifetimes`` times its lifetime before (the estimator's rule,
+:class:`~evedge.detector.intra.IntraParams` ``burst_lifetimes``), and the pixel
+expires one lifetime after the burst's *first* event. 0 (default) is the
+paper's display.
+
 References
 ----------
 .. [1] S. Lee, H. Kim, H. J. Kim, BMVC 2019, section 2.3.
@@ -23,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_sensor_size, columns
+from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size, columns
 from ._edges_kernels import _DX, _DY, _edge_update
 
 __all__ = ["EdgeImage", "edge_frames"]
@@ -41,6 +52,8 @@ class EdgeImage:
         Clear the neighbour behind each valid event (Mueggler's display).
     invalid : {"ignore", "clear"}
         What an event without estimate does to its pixel.
+    burst_lifetimes : float
+        >= 0; expiry counted from the burst's first event (module notes); 0 = from each event.
 
     Notes
     -----
@@ -48,8 +61,11 @@ class EdgeImage:
     so an edge map is available between any two events.
     """
 
-    def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore") -> None:
+    def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore",
+                 burst_lifetimes: float = 0.0) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
+        check_positive("EdgeImage", "burst_lifetimes", burst_lifetimes, allow_zero=True)
+        self.burst_lifetimes = float(burst_lifetimes)
         if not isinstance(clear_behind, (bool, np.bool_)):
             raise TypeError(f"clear_behind must be a bool, got {clear_behind!r}")
         if invalid not in _INVALID:
@@ -63,6 +79,9 @@ class EdgeImage:
         n = self.sensor_size.width * self.sensor_size.height
         self._last_t = np.full(n, NEVER_US, dtype=np.int64)
         self._expiry = np.full(n, -np.inf)
+        self._start_t = np.full(n, NEVER_US, dtype=np.int64)
+        self._prev_lt = np.full(n, np.nan)
+        self._prev_pol = np.full(n, -1, dtype=np.int8)
         self._last_time: int | None = None
 
     @property
@@ -77,12 +96,13 @@ class EdgeImage:
         check_not_before(events, self._last_time)
         if events.size == 0:
             return
-        x, y, t, _ = columns(events)
+        x, y, t, p = columns(events)
         _edge_update(x, y, t, np.ascontiguousarray(lifetimes["lifetime_us"]),
                      np.ascontiguousarray(lifetimes["vx_px_s"]), np.ascontiguousarray(lifetimes["vy_px_s"]),
                      np.ascontiguousarray(lifetimes["valid"]), self._last_t, self._expiry,
                      self.sensor_size.width, self.sensor_size.height, self.clear_behind,
-                     self.invalid == "clear", _DX, _DY)
+                     self.invalid == "clear", _DX, _DY, p, self.burst_lifetimes, self._start_t, self._prev_lt,
+                     self._prev_pol)
         self._last_time = int(t[-1])
 
     def image_at(self, t_us) -> np.ndarray:
@@ -101,7 +121,7 @@ class EdgeImage:
 
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
-                invalid: str = "ignore") -> np.ndarray:
+                invalid: str = "ignore", burst_lifetimes: float = 0.0) -> np.ndarray:
     """Edge maps at the given instants (one-shot form of :class:`EdgeImage`).
 
     Parameters
@@ -113,7 +133,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     sensor_size : SensorSize or (width, height)
     times_us : array_like of int
         Instants in us, any order; events with ``t <= T`` count for instant ``T``.
-    clear_behind, invalid
+    clear_behind, invalid, burst_lifetimes
         As in :class:`EdgeImage`.
 
     Returns
@@ -130,7 +150,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     if times.size and not np.all(np.isfinite(times)):
         raise ValueError("times_us: non-finite instant")
     out = np.zeros((times.size, *sensor_size.shape), dtype=bool)
-    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid)
+    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst_lifetimes)
     order = np.argsort(times, kind="stable")
     ends = np.searchsorted(events["t"], times[order], side="right")
     start = 0

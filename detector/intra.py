@@ -204,6 +204,18 @@ class IntraParams:
         Seed of the counter-based random stream, 0 <= seed < 2**63.
     per_polarity : bool
         One SAE per polarity (default) or one shared.
+    split_gap_ratio : float
+        >= 0. 2-means is repeated on the cluster it kept while each split leaves
+        a time gap larger than ``split_gap_ratio`` times the kept cluster's time
+        span (and than ``inlier_threshold_us``); a split without such a gap is
+        not applied, nor one that leaves fewer than ``min_points`` points
+        (default 0 = the paper's single 2-means). See the module notes
+        ("stale levels").
+    event_on_plane : bool
+        With ``refit_intercept``: no estimate when the current event is not an
+        inlier of the plane fitted on its past inliers alone, or when those fix no
+        plane (default False = the paper, whose plane passes through the event).
+        See the module notes ("noise").
     """
 
     window_size: int = 5
@@ -219,6 +231,8 @@ class IntraParams:
     burst_lifetimes: float = 1.0
     seed: int = 0
     per_polarity: bool = True
+    split_gap_ratio: float = 0.0
+    event_on_plane: bool = False
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -242,15 +256,17 @@ class IntraParams:
             if value > self.window_size**2:
                 raise ValueError(f"{own}.{name} must be <= window_size**2 = {self.window_size**2}, got {value}")
         check_positive(own, "burst_lifetimes", self.burst_lifetimes, allow_zero=True)
+        check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "event_on_plane"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{own}.{name} must be a bool, got {getattr(self, name)!r}")
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed"):
             object.__setattr__(self, name, int(getattr(self, name)))
-        for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes"):
+        for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
+                     "split_gap_ratio"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
@@ -321,7 +337,7 @@ class IntraPixelLifetime:
         w, h = self.sensor_size.width, self.sensor_size.height
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
-                pr.refit_intercept, pr.fallback_all_points, pr.seed)
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane)
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -437,7 +453,8 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     delta = params.delta_px if use_intra else 0.0
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
-                 params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl)
+                 params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
+                 params.split_gap_ratio, params.event_on_plane)
     return a, b, ok, inl.reshape(k, side, side)
 
 
