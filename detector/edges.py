@@ -93,6 +93,10 @@ class EdgeImage:
         """Apply a time-sorted chunk of events with their lifetimes (aligned)."""
         check_events(events, self.sensor_size)
         check_lifetimes(lifetimes, events.shape[0])
+        self._apply(events, lifetimes)
+
+    def _apply(self, events: np.ndarray, lifetimes: np.ndarray) -> None:
+        """:meth:`process` on validated events and aligned lifetimes (the pipeline's own stages)."""
         check_not_before(events, self._last_time)
         if events.size == 0:
             return

@@ -323,6 +323,10 @@ class IntraPixelLifetime:
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
         check_events(events, self.sensor_size)
+        return self._estimate(events)
+
+    def _estimate(self, events: np.ndarray) -> np.ndarray:
+        """:meth:`process` on events already validated (by the pipeline's first stage)."""
         check_not_before(events, self._last_time)
         n = events.shape[0]
         out = empty_lifetimes(n)

@@ -14,7 +14,9 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_sensor_size
-from .buffer import BufferParams, EventBuffer, filter_events
+from ._tiles import check_n_tiles
+from .buffer import BufferParams, EventBuffer, _filter
+from .buffer import _check_params as _buffer_params
 from .edges import EdgeImage
 from .intra import IntraParams, IntraPixelLifetime
 from .result import empty_lifetimes
@@ -88,13 +90,15 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     sensor_size = check_sensor_size(sensor_size)
     buffered = _check_method(method, use_buffer)
     check_events(events, sensor_size)
-    kept = (filter_events(events, sensor_size, buffer_params, n_tiles=n_tiles) if buffered
+    n_tiles = check_n_tiles(n_tiles, sensor_size.height)
+    # validated once here; the stages below take the checked events as they are
+    kept = (_filter(events, sensor_size, _buffer_params(buffer_params), n_tiles) if buffered
             else np.ones(events.shape[0], bool))
     sub = events[kept] if buffered else events
     if method == "intra":
         if params is not None and not isinstance(params, IntraParams):
             raise TypeError(f"params: method 'intra' takes IntraParams, got {type(params).__name__}")
-        est = IntraPixelLifetime(sensor_size, params, n_tiles=n_tiles).process(sub)
+        est = IntraPixelLifetime(sensor_size, params, n_tiles=n_tiles)._estimate(sub)
     else:
         est = _mueggler().estimate_lifetimes_mueggler(sub, sensor_size, params)
     lifetimes = empty_lifetimes(events.shape[0])
@@ -137,14 +141,19 @@ class Detector:
         self.edges.reset()
 
     def _run(self, released: np.ndarray):
-        lifetimes = self.estimator.process(released)
-        self.edges.process(released, lifetimes)
+        # the buffer validated these events: the later stages do not check them again
+        lifetimes = self.estimator._estimate(released)
+        self.edges._apply(released, lifetimes)
         return released, lifetimes
+
+    def _run_unbuffered(self, events: np.ndarray):
+        check_events(events, self.sensor_size)
+        return self._run(events)
 
     def process(self, events: np.ndarray):
         """Feed a time-sorted chunk; return ``(released_events, lifetimes)``."""
         if not self.use_buffer:
-            return self._run(events)
+            return self._run_unbuffered(events)
         return self._run(self.buffer.process(events))
 
     def advance_to(self, t_us: int):
