@@ -95,89 +95,81 @@ def _scratch(nn):
 
 
 @njit(cache=True)
-def _gap_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
-    """Split the paper's kept cluster further while a clear time gap remains (``split_gap_ratio``).
+def _degenerate(wf, n, lo, hi, min_points):
+    """Whether the window points with ``lo <= dt <= hi`` and the current event fix no plane through it.
+
+    Degenerate: fewer than ``min_points`` points (current event included), or
+    all points on one line through the current event (the origin).
+    """
+    m = 1
+    ux = 0.0
+    uy = 0.0
+    spread = False
+    for i in range(n):
+        v = wf[_DT, i]
+        if lo <= v <= hi:
+            m += 1
+            x = wf[_DX, i]
+            y = wf[_DY, i]
+            if ux == 0.0 and uy == 0.0:
+                ux = x
+                uy = y
+            elif ux * y - uy * x != 0.0:
+                spread = True
+    return m < min_points or not spread
+
+
+@njit(cache=True)
+def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
+    """The current event's cluster by single linkage in time (``split_gap_ratio > 0``), replacing 2-means.
 
     The paper's 2-means (initial centroids: the window minimum and the current
-    time) splits a window with *stale levels* badly: a pixel that skipped the
-    current edge passage keeps the time of one or two passages before, and with
-    two stale levels the middle one lies nearer the current centroid than the
-    oldest one and joins the current cluster. Here 2-means runs again on the
-    cluster the paper kept (``wi[_LAB] == 1``; same initial centroids, taken
-    within that cluster), and again on what that keeps, as long as each split is
-    *clear*: the time gap between the kept part (the current event included)
-    and the dropped part exceeds both ``gap_ratio`` times the kept part's own
-    time span and ``min_gap_us``, and the kept part keeps at least ``min_points``
-    points (current event included; a smaller one could not be fitted, and its
-    time span says nothing). On 1-D data a 2-means split is a threshold,
-    so the kept cluster stays an interval ``lo <= dt <= hi``; ``wi[_LAB, i]``
-    is set to 1 inside. Returns True when the cluster shrank.
+    time) has two failure modes on a real SAE. With *stale levels* (pixels that
+    skipped the current edge passage keep the time of one or two passages
+    before) the middle stale level lies nearer the current centroid than the
+    oldest one and joins the current cluster. On a clean *ramp* (levels 0, -L,
+    -2L behind an axis-aligned edge) the middle level sits on the centroids'
+    midpoint and timing jitter cuts it in two. Both come from a split that
+    ignores where the time gaps are. Here the cluster grows from the current
+    event (``dt = 0``) one window time at a time, always taking the nearest time
+    not yet in it (older or newer), while that gap is at most ``gap_ratio``
+    times the largest gap taken so far (gaps up to ``min_gap_us``, timing noise,
+    are always taken). One edge passage makes a chain of gaps of at most about
+    one lifetime; the gap to a stale level is the time between passages less
+    the window's span, many lifetimes. While the cluster is degenerate (see
+    :func:`_degenerate`: e.g. only the current event's own column of an
+    axis-aligned edge, whose pixels fire together) the next time is taken
+    whatever its gap: the cluster grows by the fewest time levels that fix a
+    plane (this replaces ``fallback_all_points``). The kept cluster is an
+    interval ``lo <= dt <= hi``; ``wi[_LAB, i]`` gets 1 inside.
     """
     lo = 0.0
     hi = 0.0
+    big = min_gap_us  # largest gap taken so far (at least the timing noise)
+    for _ in range(n):
+        below = -np.inf
+        above = np.inf
+        for i in range(n):
+            v = wf[_DT, i]
+            if v < lo and v > below:
+                below = v
+            elif v > hi and v < above:
+                above = v
+        g_below = lo - below
+        g_above = above - hi
+        g = min(g_below, g_above)
+        if not math.isfinite(g):
+            break
+        if not (g <= gap_ratio * big or _degenerate(wf, n, lo, hi, min_points)):
+            break
+        big = max(big, g)
+        if g_below <= g_above:
+            lo = below
+        else:
+            hi = above
     for i in range(n):
-        if wi[_LAB, i] == 1:
-            lo = min(lo, wf[_DT, i])
-            hi = max(hi, wf[_DT, i])
-    shrank = False
-    for _ in range(n + 1):
-        if lo == hi:
-            break
-        c0 = lo
-        c1 = 0.0
-        n_up = -1
-        mid = 0.0
-        for _ in range(100):
-            mid = 0.5 * (c0 + c1)
-            s0 = 0.0
-            s1 = 0.0
-            k0 = 0
-            k1 = 0
-            for q in range(n + 1):
-                v = wf[_DT, q] if q < n else 0.0
-                if not (lo <= v <= hi):
-                    continue
-                if v >= mid:  # ties join the upper centroid, as in the paper's split
-                    s1 += v
-                    k1 += 1
-                else:
-                    s0 += v
-                    k0 += 1
-            if k1 == n_up or k0 == 0 or k1 == 0:
-                break
-            n_up = k1
-            c0 = s0 / k0
-            c1 = s1 / k1
-        keep_up = 0.0 >= mid
-        kmin = 0.0
-        kmax = 0.0
-        nk = 1
-        dmin = np.inf
-        dmax = -np.inf
-        for i in range(n):
-            v = wf[_DT, i]
-            if not (lo <= v <= hi):
-                continue
-            if (v >= mid) == keep_up:
-                nk += 1
-                kmin = min(kmin, v)
-                kmax = max(kmax, v)
-            else:
-                dmin = min(dmin, v)
-                dmax = max(dmax, v)
-        if not math.isfinite(dmin):
-            break  # nothing to drop
-        gap = kmin - dmax if keep_up else dmin - kmax
-        if not (gap > gap_ratio * (kmax - kmin) and gap > min_gap_us and nk >= min_points):
-            break
-        lo = kmin
-        hi = kmax
-        shrank = True
-    if shrank:
-        for i in range(n):
-            v = wf[_DT, i]
-            wi[_LAB, i] = 1 if lo <= v <= hi else 0
-    return shrank
+        v = wf[_DT, i]
+        wi[_LAB, i] = 1 if lo <= v <= hi else 0
 
 
 @njit(cache=True)
@@ -276,7 +268,7 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         for i in range(n):
             wi[_LAB, i] = 1 if wi[_LAB, i] == cur else 0
     if gap_ratio > 0.0:
-        _gap_split(wf, wi, n, gap_ratio, thr_us, min_points)
+        _linkage_split(wf, wi, n, gap_ratio, thr_us, min_points)
 
     # ---- RANSAC on the kept cluster; a second attempt on all points when it is degenerate
     nin = -1
@@ -482,18 +474,45 @@ def _log_fail(stop_prob):
 
 
 @njit(cache=True)
-def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, row0, rows, own_lo, own_hi,
-                  dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers,
-                  intercept, fallback, seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid):
+def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
+    """The window points around pixel ``(xk, yk)`` of the SAE plane at ``base``, relative to time ``tk``.
+
+    Fills ``wf[_DX/_DY/_DT]`` and ``wi[_IT]``; never-fired pixels and pixels outside
+    the sensor (rows ``0 .. height - 1`` of the plane) are not points, nor is the
+    centre. Returns the number of points.
+    """
+    n = 0
+    # clipped ranges: the same cells in the same order as testing each against the sensor
+    for yy in range(max(yk - half, 0), min(yk + half, height - 1) + 1):
+        row = base + yy * width
+        oy = yy - yk
+        for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
+            v = sae[row + xx]
+            if v == _NEVER or (xx == xk and oy == 0):
+                continue
+            d = v - tk
+            wf[_DX, n] = xx - xk
+            wf[_DY, n] = oy
+            wf[_DT, n] = float(d)
+            wi[_IT, n] = d
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
+                  own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
+                  out_valid):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
-    The state covers sensor rows ``row0 .. row0 + rows - 1`` (the whole sensor, or a
-    strip and its halo, see :mod:`evedge.detector._tiles`): ``sae`` is the flat SAE
-    (``(plane * rows + y - row0) * width + x``), updated in place; rows outside it
-    are treated as outside the sensor. Event ``k = idx[j]`` of the arrays has global
-    index ``g0 + k`` (it seeds its random stream) and writes ``out_*[k]`` (flow in
-    px/s) when it lies in the owned rows ``own_lo <= y < own_hi``. Returns the
-    index ``j`` where it stopped (``idx.size`` at the end).
+    The state covers sensor rows ``row0 .. row0 + rows - 1`` of the ``width x height``
+    sensor (all of it, or a strip and its halo, see :mod:`evedge.detector._tiles`):
+    ``sae`` is the flat SAE (``(plane * rows + y - row0) * width + x``), updated in
+    place; rows outside it are treated as outside the sensor. Event ``k = idx[j]``
+    has global index ``g0 + k`` (it seeds its random stream) and writes
+    ``out_*[k]`` (flow in px/s) when it lies in the owned rows ``own_lo <= y <
+    own_hi``. Returns the index ``j`` where it stopped (``idx.size`` at the end).
 
     Halo (events outside the owned rows, only with strips): ``dec`` (int8, per
     event ``k``; empty without strips) carries each event's burst decision from the
@@ -510,6 +529,19 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     pixel keeps the burst's first time and the event is fitted at that time (its
     points are ``dt = t_window - t_burst_start``). Otherwise the pixel takes the
     event's time (the paper's SAE).
+
+    Start-up rule (``startup``, with ``burst > 0``): when the pixel's previous
+    event has the same polarity but no estimate (always so for the second event
+    of a pixel's first burst: nothing had history before it), the event is first
+    fitted as a continuation of the burst, and kept so when that fit gives a
+    lifetime ``L`` with the gap to the previous event at most ``burst * L``;
+    otherwise it is fitted again as a new burst. An event without estimate
+    inside a burst leaves the burst's lifetime in ``prev_lt`` (the next events
+    still continue the burst).
+
+    Border rule (``border > 0``): an event closer than ``border`` px to the sensor
+    edge (its window is clipped) is reported without estimate; its fit still
+    sets the burst state of its pixel, as any other event's.
     """
     side = 2 * half + 1
     wf, wi = _scratch(side * side)
@@ -523,49 +555,54 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         base = (p[k] if per_pol else 0) * rows * width
         si = base + yk * width + xk
         pk = np.int8(1) if p[k] else np.int8(0)
-        owned = own_lo <= y[k] < own_hi
-        if owned:
-            # prev_lt is NaN when the previous event had no estimate: the comparison is False
-            cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
-            if publish:
-                _store_release(dec, k, 2 if cont else 1)
-        else:
+        if not (own_lo <= y[k] < own_hi):
+            # a halo event: its owner's burst decision, the SAE as it left it, no fit
             dk = _load_acquire(dec, k)
             while dk == 0:
                 if not wait:
                     return j
                 _sched_yield()
                 dk = _load_acquire(dec, k)
-            cont = dk == 2
-        t_ev = tk
-        if cont:
-            tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
-        else:
-            sae[si] = tk
-        if not owned:
-            prev_t[si] = t_ev  # a halo event: the SAE as its strip left it, no fit
+            if dk == 1:
+                sae[si] = tk
+            prev_t[si] = tk
             continue
-        # the window over clipped ranges (no per-cell bounds tests), row by row
-        n = 0
-        big = 0
-        for yy in range(max(yk - half, 0), min(yk + half, rows - 1) + 1):
-            row = base + yy * width
-            oy = yy - yk
-            for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
-                v = sae[row + xx]
-                if v == _NEVER or (xx == xk and oy == 0):
-                    continue
-                d = v - tk
-                wf[_DX, n] = xx - xk
-                wf[_DY, n] = oy
-                wf[_DT, n] = float(d)
-                wi[_IT, n] = d
-                big = max(big, abs(d))
-                n += 1
-        ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
-                               gap_ratio, on_plane)
-        if ok:
+        # prev_lt is NaN when the previous event had no estimate: the comparison is False
+        cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
+        # start-up rule: the previous event of the burst has no estimate yet; try the continuation first
+        trial = startup and burst > 0.0 and not cont and prev_pol[si] == pk and math.isnan(prev_lt[si])
+        t_ev = tk
+        ok = False
+        a = np.nan
+        b = np.nan
+        for attempt in range(2):
+            if cont or trial:
+                tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
+            else:
+                tk = t_ev
+                sae[si] = tk
+            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half)
+            big = 0
+            for i in range(n):
+                big = max(big, abs(wi[_IT, i]))
+            ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
+                                   thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
+                                   fallback, gap_ratio, on_plane)
+            if not trial:
+                break
+            trial = False
+            if ok and t_ev - prev_t[si] <= burst * math.sqrt(a * a + b * b):
+                cont = True  # the continuation fits and its own lifetime covers the gap: keep it
+                break
+        # border rule: the fit still feeds the burst state below, but is not reported
+        if publish:
+            _store_release(dec, k, 2 if cont else 1)
+        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border):
+            out_lt[k] = math.sqrt(a * a + b * b)
+            out_vx[k] = np.nan
+            out_vy[k] = np.nan
+            out_valid[k] = False
+        elif ok:
             g2 = a * a + b * b
             out_lt[k] = math.sqrt(g2)
             out_vx[k] = a / g2 * 1e6
@@ -577,7 +614,11 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             out_vy[k] = np.nan
             out_valid[k] = False
         prev_t[si] = t_ev
-        prev_lt[si] = out_lt[k]
+        # start-up rule: an event without estimate inside a burst keeps the burst's lifetime
+        if ok or not (startup and cont):
+            prev_lt[si] = out_lt[k]
+        if not out_valid[k]:
+            out_lt[k] = np.nan  # a border event's lifetime was kept above only for its burst state
         prev_pol[si] = pk
     return idx.shape[0]
 

@@ -113,22 +113,25 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 @njit(parallel=True, cache=True)
 def _intra_parallel(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo, own_hi, dec,
-                    burst, width, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                    min_inliers, intercept, fallback, seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid):
+                    burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                    min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx,
+                    out_vy, out_valid):
     """Every strip on its own thread; a halo event waits for its owner's decision."""
     for s in prange(lo.shape[0]):
         o0 = off[s]
         o1 = off[s + 1]
         _intra_stream(x, y, t, p, idx[starts[s]:starts[s + 1]], 0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
-                      prev_pol[o0:o1], burst, width, lo[s], rows[s], own_lo[s], own_hi[s], dec, True, per_pol, half,
-                      delta, thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback,
-                      seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid)
+                      prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s], dec, True,
+                      per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers,
+                      intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
+                      out_valid)
 
 
 @njit(cache=True)
 def _intra_interleaved(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo, own_hi,
-                       dec, burst, width, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                       min_inliers, intercept, fallback, seed, gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid):
+                       dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
+                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border,
+                       out_lt, out_vx, out_vy, out_valid):
     """The strips on one thread, each run until it needs a decision not yet taken (more strips than threads).
 
     The strip holding the earliest unprocessed event never waits (a decision it
@@ -144,10 +147,10 @@ def _intra_interleaved(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, p
                 o0 = off[s]
                 o1 = off[s + 1]
                 cursor[s] = _intra_stream(x, y, t, p, seg, cursor[s], g0, sae[o0:o1], prev_t[o0:o1],
-                                          prev_lt[o0:o1], prev_pol[o0:o1], burst, width, lo[s], rows[s], own_lo[s],
-                                          own_hi[s], dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials,
-                                          stop_prob, min_points, min_inliers, intercept, fallback, seed,
-                                          gap_ratio, on_plane, out_lt, out_vx, out_vy, out_valid)
+                                          prev_lt[o0:o1], prev_pol[o0:o1], burst, width, height, lo[s], rows[s],
+                                          own_lo[s], own_hi[s], dec, False, per_pol, half, delta, thr_us, thr_rel,
+                                          max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
+                                          gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy, out_valid)
                 done = done and cursor[s] == seg.shape[0]
         if done:
             return
@@ -158,9 +161,9 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
-    ``burst`` to ``on_plane`` without the geometry (``burst, per_pol, half, delta,
+    ``burst`` to ``border`` without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
-    fallback, seed, gap_ratio, on_plane``); ``outs`` is ``(lt, vx, vy, valid)``. The strips run on their own
+    fallback, seed, gap_ratio, on_plane, startup, border``); ``outs`` is ``(lt, vx, vy, valid)``. The strips run on their own
     threads when numba has that many, else interleaved on one.
     """
     half = kernel_args[2]
@@ -180,7 +183,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
     kernel = _intra_parallel if n_tiles <= numba.get_num_threads() else _intra_interleaved
     kernel(x, y, t, p, g0, idx, starts, off, *local, lo, rows, own_lo, own_hi, np.zeros(x.shape[0], np.int8),
-           kernel_args[0], width, *kernel_args[1:], *outs)
+           kernel_args[0], width, height, *kernel_args[1:], *outs)
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
         for g, l in zip(state, local):

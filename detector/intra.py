@@ -216,6 +216,18 @@ class IntraParams:
         inlier of the plane fitted on its past inliers alone, or when those fix no
         plane (default False = the paper, whose plane passes through the event).
         See the module notes ("noise").
+    burst_startup : bool
+        With ``burst_lifetimes > 0``: an event whose pixel's previous event (same
+        polarity) has no estimate yet is fitted first as a continuation of that
+        burst, and kept so when its own lifetime covers the gap; an event without
+        estimate inside a burst keeps the burst's lifetime for the next ones
+        (default False: such events start a new burst). See the module notes
+        ("start-up").
+    border_px : int
+        >= 0. Events closer than this to the sensor's edge, whose window is
+        clipped, get no estimate (their fit still sets their pixel's burst
+        state); Mueggler et al.'s code skips 2 px. Default 0 (the paper says
+        nothing). See the module notes ("border").
     """
 
     window_size: int = 5
@@ -233,6 +245,8 @@ class IntraParams:
     per_polarity: bool = True
     split_gap_ratio: float = 0.0
     event_on_plane: bool = False
+    burst_startup: bool = False
+    border_px: int = 0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -257,13 +271,14 @@ class IntraParams:
                 raise ValueError(f"{own}.{name} must be <= window_size**2 = {self.window_size**2}, got {value}")
         check_positive(own, "burst_lifetimes", self.burst_lifetimes, allow_zero=True)
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
+        check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "event_on_plane"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "event_on_plane", "burst_startup"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{own}.{name} must be a bool, got {getattr(self, name)!r}")
-        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed"):
+        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio"):
@@ -341,12 +356,13 @@ class IntraPixelLifetime:
         w, h = self.sensor_size.width, self.sensor_size.height
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
-                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane)
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
+                pr.burst_startup, pr.border_px)
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
-                          self._prev_pol, burst, w, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
                           lt, vx, vy, valid)
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
