@@ -50,12 +50,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .methods import DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, PRIMARY_DISPLAY_WHY, display_view
+from .methods import COMPARED, DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, PRIMARY_DISPLAY_WHY, display_view
 
 BASELINES = ("mueggler", "acc_1ms", "acc_30ms")
 SECTIONS = ("slow", "fast")
 _REF_DELTA = 0.25
 _DIAGNOSTIC = ("mueggler_t0",)  # explanatory variants, never compared in a verdict
+#: The paper's methods (base keys): plug-ins compared with --method are never ranked in a verdict.
+_PAPER_METHODS = frozenset(c.base for c in COMPARED.values() if c.builtin)
 
 
 def _fmt(x, nd=1) -> str:
@@ -386,13 +388,16 @@ def real_verdicts(real: dict, displays=DISPLAYS) -> list[dict]:
                                     display=display))
                 continue
             for ref in per_method["proposed"]["median"]:
-                med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method if m not in _DIAGNOSTIC}
+                med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method
+                       if m not in _DIAGNOSTIC and m in _PAPER_METHODS}
                 best = max(med, key=lambda m: -np.inf if not np.isfinite(med[m]) else med[m])
                 ev = ", ".join(f"{m} {_fmt(v)}" for m, v in med.items())
                 diag = [f"{m} {_fmt(per_method[m]['median'].get(ref, np.nan))}" for m in per_method
-                        if m in _DIAGNOSTIC]
+                        if m in _DIAGNOSTIC or m not in _PAPER_METHODS]
                 if diag:
-                    ev += "; diagnostic (not ranked): " + ", ".join(diag)
+                    kind = "diagnostic" if all(m in _DIAGNOSTIC for m in per_method if m not in med) \
+                        else "diagnostic or other methods"
+                    ev += f"; {kind} (not ranked): " + ", ".join(diag)
                 ev += f"; best: {best}"
                 if best == "acc_count":
                     rest = {m: v for m, v in med.items() if m != "acc_count"}
@@ -480,3 +485,40 @@ def all_verdicts(results: dict) -> list[dict]:
             + intra_verdicts(results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity"))
             + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
             + real_verdicts(results.get("real") or {}))
+
+
+def policy_effect(results: dict) -> dict | None:
+    """How far the display policy and the estimator move the median CDM in this run (computed, not asserted).
+
+    Over every scene/truth/section (slow, fast) and real recording/reference:
+    ``policy``: |median under one policy - under the other| per lifetime method;
+    ``estimator``: |proposed - Mueggler| under one policy. Max and median of each; None without both.
+    """
+    from .methods import method_key
+
+    def medians():
+        for per_truth in (results.get("cdm") or {}).values():
+            for per in per_truth.values():
+                for section in ("slow", "fast"):
+                    yield {k: np.nan if (v.get(section) or {}).get("median") is None
+                           else float(v[section]["median"]) for k, v in per.items()}
+        for per in (results.get("real") or {}).values():
+            refs = sorted({ref for v in per.values() for ref in (v.get("median") or {})})
+            for ref in refs:
+                yield {k: np.nan if (v.get("median") or {}).get(ref) is None else float(v["median"][ref])
+                       for k, v in per.items()}
+
+    policy, estimator = [], []
+    for med in medians():
+        for base in ("proposed", "mueggler"):
+            a, b = (med.get(method_key(base, d), np.nan) for d in DISPLAYS[:2])
+            if np.isfinite(a) and np.isfinite(b):
+                policy.append(abs(a - b))
+        for d in DISPLAYS:
+            a, b = med.get(method_key("proposed", d), np.nan), med.get(method_key("mueggler", d), np.nan)
+            if np.isfinite(a) and np.isfinite(b):
+                estimator.append(abs(a - b))
+    if not policy or not estimator:
+        return None
+    return {"policy_max": max(policy), "policy_median": float(np.median(policy)),
+            "estimator_max": max(estimator), "estimator_median": float(np.median(estimator))}

@@ -37,6 +37,7 @@ from evedge.events import EVENT_DTYPE
 from ._buffer_kernels import _buffer_scan, _n_decided
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
+from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
 
@@ -138,7 +139,7 @@ class EventBuffer:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Take a time-sorted chunk; return the kept events whose fate is now known."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         if events.size == 0:
             return events[:0].copy()
@@ -210,7 +211,7 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     """
     sensor_size = check_sensor_size(sensor_size)
     params = _check_params(params)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     return _filter(events, sensor_size, params, check_n_tiles(n_tiles, sensor_size.height))
 
 
@@ -226,3 +227,20 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
                  np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
                  np.full(2 * w * h, -1, dtype=np.int64), w, h, params.tau_min_us, params.mode == "causal")
     return supported
+
+
+def _registered(sensor_size, n_tiles: int = 1, **params) -> EventBuffer:
+    """Factory of the method registry: ``EventBuffer(sensor_size, BufferParams(**params))``.
+
+    ``n_tiles`` is for the one-shot keep mask (strips); the streaming buffer is serial.
+    """
+    return EventBuffer(sensor_size, BufferParams(**params))
+
+
+def _keep_mask(events: np.ndarray, sensor_size, n_tiles: int = 1, **params) -> np.ndarray:
+    """One-shot keep mask of the registry entry: :func:`filter_events`."""
+    return filter_events(events, sensor_size, BufferParams(**params), n_tiles=n_tiles)
+
+
+METHODS.register("buffer", _registered, kind="filter", display_name="event buffer (noise filter)", colour="#8c564b",
+                 params=BufferParams, keep_mask=_keep_mask, extra_params=("n_tiles",))

@@ -37,9 +37,25 @@ import numpy as np
 from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size, columns
 from ._edges_kernels import _DX, _DY, _edge_update
 
-__all__ = ["EdgeImage", "edge_frames"]
+__all__ = ["DISPLAYS", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind", "edge_frames"]
 
 _INVALID = ("ignore", "clear")
+
+#: Display policies: how an estimator's lifetimes become an edge image (a parameter of the
+#: image, never part of a method's name) -> ``clear_behind``. ``predecessor``: Mueggler et
+#: al.'s display, each event also clears the pixel behind it; ``lifetime_only``: nothing cleared.
+DISPLAYS = {"predecessor": True, "lifetime_only": False}
+
+#: The display of ``evedge detect`` by default and of the report's primary comparison: the
+#: authors' code is a fork of Mueggler et al.'s and inherits its display.
+PRIMARY_DISPLAY = "predecessor"
+
+
+def display_clear_behind(display: str) -> bool:
+    """``clear_behind`` of a display policy; ``ValueError`` naming the policies otherwise."""
+    if display not in DISPLAYS:
+        raise ValueError(f"display must be one of {tuple(DISPLAYS)}, got {display!r}")
+    return DISPLAYS[display]
 
 
 class EdgeImage:
@@ -54,6 +70,8 @@ class EdgeImage:
         What an event without estimate does to its pixel.
     burst_lifetimes : float
         >= 0; expiry counted from the burst's first event (module notes); 0 = from each event.
+    display : {"predecessor", "lifetime_only"}, optional
+        A display policy of :data:`DISPLAYS`; sets ``clear_behind`` (then leave it unset).
 
     Notes
     -----
@@ -62,10 +80,12 @@ class EdgeImage:
     """
 
     def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore",
-                 burst_lifetimes: float = 0.0) -> None:
+                 burst_lifetimes: float = 0.0, *, display: str | None = None) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         check_positive("EdgeImage", "burst_lifetimes", burst_lifetimes, allow_zero=True)
         self.burst_lifetimes = float(burst_lifetimes)
+        if display is not None:
+            clear_behind = display_clear_behind(display)
         if not isinstance(clear_behind, (bool, np.bool_)):
             raise TypeError(f"clear_behind must be a bool, got {clear_behind!r}")
         if invalid not in _INVALID:
@@ -91,12 +111,8 @@ class EdgeImage:
 
     def process(self, events: np.ndarray, lifetimes: np.ndarray) -> None:
         """Apply a time-sorted chunk of events with their lifetimes (aligned)."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_lifetimes(lifetimes, events.shape[0])
-        self._apply(events, lifetimes)
-
-    def _apply(self, events: np.ndarray, lifetimes: np.ndarray) -> None:
-        """:meth:`process` on validated events and aligned lifetimes (the pipeline's own stages)."""
         check_not_before(events, self._last_time)
         if events.size == 0:
             return
@@ -125,7 +141,7 @@ class EdgeImage:
 
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
-                invalid: str = "ignore", burst_lifetimes: float = 0.0) -> np.ndarray:
+                invalid: str = "ignore", burst_lifetimes: float = 0.0, *, display: str | None = None) -> np.ndarray:
     """Edge maps at the given instants (one-shot form of :class:`EdgeImage`).
 
     Parameters
@@ -137,7 +153,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     sensor_size : SensorSize or (width, height)
     times_us : array_like of int
         Instants in us, any order; events with ``t <= T`` count for instant ``T``.
-    clear_behind, invalid, burst_lifetimes
+    clear_behind, invalid, burst_lifetimes, display
         As in :class:`EdgeImage`.
 
     Returns
@@ -146,7 +162,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
         bool, shape ``(len(times_us), height, width)``, in the order of ``times_us``.
     """
     sensor_size = check_sensor_size(sensor_size)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     check_lifetimes(lifetimes, events.shape[0])
     times = np.asarray(times_us)
     if times.ndim != 1 or (times.size and times.dtype.kind not in "iuf"):
@@ -154,7 +170,8 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     if times.size and not np.all(np.isfinite(times)):
         raise ValueError("times_us: non-finite instant")
     out = np.zeros((times.size, *sensor_size.shape), dtype=bool)
-    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst_lifetimes)
+    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst_lifetimes,
+                      display=display)
     order = np.argsort(times, kind="stable")
     ends = np.searchsorted(events["t"], times[order], side="right")
     start = 0

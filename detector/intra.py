@@ -155,6 +155,7 @@ from ._checks import check_events, check_not_before, check_positive, check_senso
 from ._intra_kernels import _fit_windows, _intra_stream
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
+from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
 __all__ = ["IntraParams", "IntraPixelLifetime", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows"]
@@ -337,11 +338,7 @@ class IntraPixelLifetime:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
-        check_events(events, self.sensor_size)
-        return self._estimate(events)
-
-    def _estimate(self, events: np.ndarray) -> np.ndarray:
-        """:meth:`process` on events already validated (by the pipeline's first stage)."""
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
         out = empty_lifetimes(n)
@@ -503,3 +500,12 @@ def fit_window(window_t_us, params: IntraParams | None = None, *, use_intra: boo
     a, b, ok, inl = fit_windows(w[None], params, use_intra=use_intra, seed=seed)
     lifetime = float(np.hypot(a[0], b[0])) if ok[0] else float("nan")
     return WindowFit(float(a[0]), float(b[0]), inl[0], bool(ok[0]), lifetime)
+
+
+def _registered(sensor_size, n_tiles: int = 1, **params) -> IntraPixelLifetime:
+    """Factory of the method registry: ``IntraPixelLifetime(sensor_size, IntraParams(**params), n_tiles=n_tiles)``."""
+    return IntraPixelLifetime(sensor_size, IntraParams(**params), n_tiles=n_tiles)
+
+
+METHODS.register("intra", _registered, kind="estimator", display_name="proposed (intra-pixel-area)",
+                 colour="#d62ad6", params=IntraParams, filter="buffer", extra_params=("n_tiles",))
