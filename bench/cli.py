@@ -141,11 +141,13 @@ def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: in
 @_NOPROG
 @_SEED
 @_DATA
-def lifetime(out: Path, quick: bool, no_progress: bool, seed: int, data_dir) -> None:
+@click.option("--scene", default="stripes", show_default=True, callback=_scene,
+              help="Scene simulated for the simulated dataset: a shipped scene's name or a TOML file.")
+def lifetime(out: Path, quick: bool, no_progress: bool, seed: int, data_dir, scene) -> None:
     """Lifetime histograms and images on real and simulated stripes (paper figs. 4-5)."""
     from .exp_lifetime import run_lifetime
 
-    res = run_lifetime(out, quick=quick, progress=not no_progress, seed=seed, data_dir=data_dir)
+    res = run_lifetime(out, quick=quick, progress=not no_progress, seed=seed, data_dir=data_dir, scene=scene)
     click.echo("\n".join(res["figures"]))
 
 

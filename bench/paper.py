@@ -363,6 +363,9 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
             table.extend(rows, experiment=name)
     bar.close()
     results["verdicts"] = all_verdicts(results)
+    from .claims import evaluate
+
+    results["claims"] = evaluate(table)
     results["display"] = dict(display_record(DISPLAYS), summary=display_summary(results["verdicts"]))
     wall = time.perf_counter() - t_start
     results["params"] = params

@@ -248,14 +248,14 @@ def ransac_rows(fmeasure: Mapping) -> list[dict]:
     rows = []
     for kind, per in fmeasure.items():
         for variant, r in per.items():
-            levels = r.get("noise_px") or []
+            levels = list(r.get("noise_px", []))
             for metric, values in r.items():
-                if metric in ("noise_px",) or not isinstance(values, (list, tuple)) or len(values) != len(levels):
+                if metric == "noise_px" or not isinstance(values, (list, tuple, np.ndarray)) or len(values) != len(levels):
                     continue
                 for level, v in zip(levels, values):
                     num = _number(v)
                     if num is not None:
-                        rows.append({"dataset": f"synthetic windows, {kind} noise", "reference": "true inliers",
+                        rows.append({"dataset": f"ransac_{kind}", "reference": "true inliers",
                                      "method": "intra", "variant": variant, "section": f"noise_{level}",
                                      "metric": metric, "value": num})
     return rows

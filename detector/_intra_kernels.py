@@ -30,6 +30,8 @@ from numba import njit
 
 from evedge._splitmix import _splitmix64
 
+from ._atomic import _load_acquire, _sched_yield, _store_release
+
 _NEVER = np.iinfo(np.int64).min
 
 
@@ -477,25 +479,20 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
     """The window points around pixel ``(xk, yk)`` of the SAE plane at ``base``, relative to time ``tk``.
 
     Fills ``wf[_DX/_DY/_DT]`` and ``wi[_IT]``; never-fired pixels and pixels outside
-    the sensor are not points, nor is the centre. Returns the number of points.
+    the sensor (rows ``0 .. height - 1`` of the plane) are not points, nor is the
+    centre. Returns the number of points.
     """
     n = 0
-    for oy in range(-half, half + 1):
-        yy = yk + oy
-        if yy < 0 or yy >= height:
-            continue
+    # clipped ranges: the same cells in the same order as testing each against the sensor
+    for yy in range(max(yk - half, 0), min(yk + half, height - 1) + 1):
         row = base + yy * width
-        for ox in range(-half, half + 1):
-            if ox == 0 and oy == 0:
-                continue
-            xx = xk + ox
-            if xx < 0 or xx >= width:
-                continue
+        oy = yy - yk
+        for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
             v = sae[row + xx]
-            if v == _NEVER:
+            if v == _NEVER or (xx == xk and oy == 0):
                 continue
             d = v - tk
-            wf[_DX, n] = ox
+            wf[_DX, n] = xx - xk
             wf[_DY, n] = oy
             wf[_DT, n] = float(d)
             wi[_IT, n] = d
@@ -504,14 +501,26 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
 
 
 @njit(cache=True)
-def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, per_pol, half, delta,
-                  thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
-                  out_lt, out_vx, out_vy, out_valid, gap_ratio, on_plane, startup, border):
-    """SAE update, window gathering, 2-means and RANSAC for each event in order.
+def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
+                  own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
+                  out_valid):
+    """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
-    ``sae`` is the flat SAE (``(plane * height + y) * width + x``), updated in place;
-    ``g0`` is the global index of the first event (seeds its random stream).
-    Flow is written in px/s.
+    The state covers sensor rows ``row0 .. row0 + rows - 1`` of the ``width x height``
+    sensor (all of it, or a strip and its halo, see :mod:`evedge.detector._tiles`):
+    ``sae`` is the flat SAE (``(plane * rows + y - row0) * width + x``), updated in
+    place; rows outside it are treated as outside the sensor. Event ``k = idx[j]``
+    has global index ``g0 + k`` (it seeds its random stream) and writes
+    ``out_*[k]`` (flow in px/s) when it lies in the owned rows ``own_lo <= y <
+    own_hi``. Returns the index ``j`` where it stopped (``idx.size`` at the end).
+
+    Halo (events outside the owned rows, only with strips): ``dec`` (int8, per
+    event ``k``; empty without strips) carries each event's burst decision from the
+    strip that owns it: an owned event publishes ``1`` (new burst) or ``2``
+    (continues its pixel's burst); a halo event replays that decision (SAE update
+    only, no fit). A halo event whose decision is not published yet (``0``) is
+    waited for (``wait``), or ends the call (it returns that event's ``j``).
 
     Burst grouping (``burst > 0``): ``prev_lt`` (float, NaN = none) and ``prev_pol``
     (int8, -1 = none), laid out as ``sae`` and updated in place, hold the lifetime
@@ -538,13 +547,27 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
     side = 2 * half + 1
     wf, wi = _scratch(side * side)
     log_fail = _log_fail(stop_prob)
-    for k in range(x.shape[0]):
+    publish = dec.shape[0] > 0
+    for j in range(j0, idx.shape[0]):
+        k = idx[j]
         xk = x[k]
-        yk = y[k]
+        yk = y[k] - row0
         tk = t[k]
-        base = (p[k] if per_pol else 0) * height * width
+        base = (p[k] if per_pol else 0) * rows * width
         si = base + yk * width + xk
         pk = np.int8(1) if p[k] else np.int8(0)
+        if not (own_lo <= y[k] < own_hi):
+            # a halo event: its owner's burst decision, the SAE as it left it, no fit
+            dk = _load_acquire(dec, k)
+            while dk == 0:
+                if not wait:
+                    return j
+                _sched_yield()
+                dk = _load_acquire(dec, k)
+            if dk == 1:
+                sae[si] = tk
+            prev_t[si] = tk
+            continue
         # prev_lt is NaN when the previous event had no estimate: the comparison is False
         cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
         # start-up rule: the previous event of the burst has no estimate yet; try the continuation first
@@ -559,7 +582,7 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
             else:
                 tk = t_ev
                 sae[si] = tk
-            n = _gather(sae, wf, wi, base, xk, yk, tk, width, height, half)
+            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half)
             big = 0
             for i in range(n):
                 big = max(big, abs(wi[_IT, i]))
@@ -573,7 +596,9 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
                 cont = True  # the continuation fits and its own lifetime covers the gap: keep it
                 break
         # border rule: the fit still feeds the burst state below, but is not reported
-        if ok and (xk < border or yk < border or xk >= width - border or yk >= height - border):
+        if publish:
+            _store_release(dec, k, 2 if cont else 1)
+        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border):
             out_lt[k] = math.sqrt(a * a + b * b)
             out_vx[k] = np.nan
             out_vy[k] = np.nan
@@ -596,6 +621,7 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
         if not out_valid[k]:
             out_lt[k] = np.nan  # a border event's lifetime was kept above only for its burst state
         prev_pol[si] = pk
+    return idx.shape[0]
 
 
 @njit(cache=True)

@@ -110,7 +110,7 @@ With the check below, ratios 2 / 3 / 5 put 28 / 31 / 32 of the 72 quick-grid
 cells within the median-error goal and 11 / 19 / 21 within the > 2x goal; 3
 (the preset's) and 5 are alike, 2 cuts passages.
 
-Noise (``event_on_plane``, default False = the paper). A background event that
+Noise (``event_on_plane``, default 0 = off, the paper). A background event that
 passes the buffer usually fires after an edge passed its neighbours (or before
 it arrives): RANSAC through it finds planes among them, and with a threshold
 relative to the candidate's lifetime a steep plane absorbs far points. With the
@@ -231,12 +231,15 @@ import numpy as np
 
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream
+from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
 __all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows",
            "robust_params"]
+
+_NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
 
 
 @dataclass(frozen=True)
@@ -282,12 +285,12 @@ class IntraParams:
     per_polarity : bool
         One SAE per polarity (default) or one shared.
     split_gap_ratio : float
-        >= 0. 2-means is repeated on the cluster it kept while each split leaves
-        a time gap larger than ``split_gap_ratio`` times the kept cluster's time
-        span (and than ``inlier_threshold_us``); a split without such a gap is
-        not applied, nor one that leaves fewer than ``min_points`` points
-        (default 0 = the paper's single 2-means). See the module notes
-        ("stale levels").
+        >= 0. Above 0 the current event's cluster is grown by single linkage in
+        time instead of 2-means: the nearest remaining window time joins while
+        its gap is at most ``split_gap_ratio`` times the largest gap taken so far
+        (gaps up to ``inlier_threshold_us`` always join), and whatever the gap
+        while the cluster fixes no plane (default 0 = the paper's 2-means). See
+        the module notes ("stale levels").
     event_on_plane : float
         >= 0. With ``refit_intercept``: no estimate when the current event is
         farther than ``event_on_plane`` inlier thresholds from the plane fitted
@@ -395,6 +398,9 @@ class IntraPixelLifetime:
     ----------
     sensor_size : SensorSize or (width, height)
     params : IntraParams, optional
+    n_tiles : int
+        Row strips processed in parallel (numba threads; default 1, serial). Any
+        value gives the same bytes (:mod:`evedge.detector._tiles`).
 
     Attributes
     ----------
@@ -411,9 +417,10 @@ class IntraPixelLifetime:
     previous event time, polarity and lifetime, carries across chunks).
     """
 
-    def __init__(self, sensor_size, params: IntraParams | None = None) -> None:
+    def __init__(self, sensor_size, params: IntraParams | None = None, *, n_tiles: int = 1) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         self.params = _check_params(params)
+        self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
         self.reset()
 
@@ -440,11 +447,21 @@ class IntraPixelLifetime:
         vy = np.empty(n)
         valid = np.empty(n, dtype=bool)
         pr = self.params
-        _intra_stream(x, y, t, p, self._n_seen, self.sae.times_us.reshape(-1), self._prev_t, self._prev_lt, self._prev_pol,
-                      pr.burst_lifetimes, self.sensor_size.width, self.sensor_size.height, pr.per_polarity, pr.window_size // 2, pr.delta_px,
-                      pr.inlier_threshold_us, pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability,
-                      pr.min_points, pr.min_inliers, pr.refit_intercept, pr.fallback_all_points, pr.seed,
-                      lt, vx, vy, valid, pr.split_gap_ratio, pr.event_on_plane, pr.burst_startup, pr.border_px)
+        w, h = self.sensor_size.width, self.sensor_size.height
+        args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
+                pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
+                pr.burst_startup, pr.border_px)
+        sae = self.sae.times_us
+        if self.n_tiles == 1:
+            burst, per_pol, half = args[:3]
+            _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
+                          lt, vx, vy, valid)
+        else:
+            state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
+                     self._prev_pol.reshape(sae.shape))
+            intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid))
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time
@@ -455,7 +472,8 @@ class IntraPixelLifetime:
         return out
 
 
-def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | None = None) -> np.ndarray:
+def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | None = None, *,
+                       n_tiles: int = 1) -> np.ndarray:
     """One-shot intra-pixel-area lifetime estimation.
 
     Parameters
@@ -466,13 +484,15 @@ def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | No
         or :func:`evedge.detector.pipeline.detect`).
     sensor_size : SensorSize or (width, height)
     params : IntraParams, optional
+    n_tiles : int
+        Row strips run in parallel (same bytes for any value; see :class:`IntraPixelLifetime`).
 
     Returns
     -------
     numpy.ndarray
         :data:`~evedge.detector.result.LIFETIME_DTYPE`, aligned with ``events``.
     """
-    return IntraPixelLifetime(sensor_size, params).process(events)
+    return IntraPixelLifetime(sensor_size, params, n_tiles=n_tiles).process(events)
 
 
 @dataclass(frozen=True)
@@ -579,10 +599,10 @@ def fit_window(window_t_us, params: IntraParams | None = None, *, use_intra: boo
     return WindowFit(float(a[0]), float(b[0]), inl[0], bool(ok[0]), lifetime)
 
 
-def _registered(sensor_size, **params) -> IntraPixelLifetime:
-    """Factory of the method registry: ``IntraPixelLifetime(sensor_size, IntraParams(**params))``."""
-    return IntraPixelLifetime(sensor_size, IntraParams(**params))
+def _registered(sensor_size, n_tiles: int = 1, **params) -> IntraPixelLifetime:
+    """Factory of the method registry: ``IntraPixelLifetime(sensor_size, IntraParams(**params), n_tiles=n_tiles)``."""
+    return IntraPixelLifetime(sensor_size, IntraParams(**params), n_tiles=n_tiles)
 
 
 METHODS.register("intra", _registered, kind="estimator", display_name="proposed (intra-pixel-area)",
-                 colour="#d62ad6", params=IntraParams, filter="buffer")
+                 colour="#d62ad6", params=IntraParams, filter="buffer", extra_params=("n_tiles",))

@@ -224,3 +224,43 @@ def test_report_states_the_policy_effect_from_the_numbers():
     from evedge.bench.paper import NOTES
 
     assert not any("more than the estimator" in n for n in NOTES)
+
+
+def _legacy_counts(verdicts, text):
+    """(holds, fails) of the detailed verdicts whose claim (after its [context]) starts like ``text``."""
+    vs = [v for v in verdicts if v["claim"].split("] ", 1)[-1].startswith(text[:40])]
+    return sum(v["status"] == "holds" for v in vs), sum(v["status"] == "fails" for v in vs)
+
+
+def test_results_table_and_declarative_claims_agree_with_the_verdicts(tiny_run):
+    """The long table holds the experiments' numbers, and the claims computed from it (declarative
+    rules) agree with the detailed verdicts computed from results.json, group for group."""
+    from markupsafe import escape
+
+    from evedge.bench.claims import CLAIMS, evaluate
+    from evedge.bench.results import read_results
+
+    out, res = tiny_run
+    table = read_results(out / "results.h5")
+    assert read_results(out / "results.csv").rows == table.rows
+    assert set(table.unique("experiment")) == {"ransac", "lifetime", "similarity", "real"}
+    scene = next(iter(res["cdm"]))
+    # a number of the nested results is the same number in the table
+    want = res["cdm"][scene]["exact"]["proposed_noclear"]["fast"]["median"]
+    assert table.value(experiment="similarity", reference="exact", variant="proposed_noclear", section="fast",
+                       metric="cdm_median") == want
+    assert table.unique("method", experiment="similarity", variant="proposed_noclear") == ["intra"]
+    assert table.unique("display", experiment="similarity", variant="proposed_noclear") == ["lifetime_only"]
+    claims = {c["name"]: c for c in evaluate(table)}
+    assert claims == {c["name"]: c for c in res["claims"]}
+    checked = 0
+    for claim in CLAIMS:
+        c = claims[claim.name]
+        assert (c["n_holds"], c["n_fails"]) == _legacy_counts(res["verdicts"], claim.text), claim.name
+        checked += c["n_checks"]
+    assert checked >= 10
+    html = (out / "report.html").read_text()
+    board = html[html.index("<h2>Leaderboard"):html.index("<h2>Do the paper")]
+    assert "<b>" in board and "proposed (intra-pixel-area)" in board and "vs exact" in board
+    for c in claims.values():
+        assert str(escape(c["claim"])) in html
