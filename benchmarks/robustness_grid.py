@@ -103,7 +103,8 @@ def shapes_scene(width, height, speed, r, noise_hz, seed):
         "events": _events_table(noise_hz, seed),
         "motion": {"velocity_px_s": [v, v * 0.6]},
         "shapes": [
-            {"kind": "triangle", "center_px": [0.25 * width, 0.3 * height], "radius_px": rad, "intensity": _dark_for(r)},
+            {"kind": "triangle", "center_px": [0.25 * width, 0.3 * height], "radius_px": rad,
+             "intensity": _dark_for(r)},
             {"kind": "square", "center_px": [0.6 * width, 0.3 * height], "radius_px": rad, "rotation_deg": 45,
              "intensity": _dark_for(r)},
             {"kind": "circle", "center_px": [0.4 * width, 0.7 * height], "radius_px": rad, "intensity": _dark_for(r)},

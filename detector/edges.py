@@ -35,7 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size, columns
+from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
+                      columns)
 from ._edges_kernels import _DX, _DY, _edge_update
 
 __all__ = ["DISPLAYS", "DISPLAY_BURST_LIFETIMES", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind",

@@ -236,8 +236,8 @@ from .result import empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
-__all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows",
-           "robust_params"]
+__all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate_lifetimes", "fit_window",
+           "fit_windows", "robust_params"]
 
 _NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
 
