@@ -30,7 +30,7 @@ def sim_stripes():
     return rec.events, rec.sensor_size
 
 
-# the strips are shared by numba's threads (2 here): fewer, as many and more strips than threads
+# the strips are shared by numba's threads (2 here): as many strips as threads, and more
 TILES = (2, 3, 5, 16)
 
 
