@@ -72,9 +72,16 @@ def bench() -> None:
     """The paper's experiments: metrics, figures, tables and an HTML report."""
 
 
+from .sweep_cli import sweep  # noqa: E402  (its heavy imports happen when it runs)
+
+bench.add_command(sweep)
+
+
 def _summary(results: dict, t0: float) -> None:
-    for v in results.get("verdicts", []):
-        click.echo(f"  [{v['status'].upper():11s}] {v['claim']}")
+    # one line per paper claim (evedge.bench.claims); every detailed check is in the report
+    for c in results.get("claims", []):
+        counts = f" ({c['n_holds']} of {c['n_checks']} checks hold)" if c["n_checks"] else ""
+        click.echo(f"  [{c['status'].upper():11s}] {c['claim']}{counts}")
     for name, why in results.get("skipped", {}).items():
         click.echo(f"  skipped {name}: {why}", err=True)
     for name, err in results.get("errors", {}).items():

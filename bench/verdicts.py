@@ -479,12 +479,27 @@ def display_summary(verdicts: list[dict]) -> dict:
     return {"primary": PRIMARY_DISPLAY, "why": PRIMARY_DISPLAY_WHY, "policies": pol, "text": text}
 
 
-def all_verdicts(results: dict) -> list[dict]:
-    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real)."""
-    return (cdm_verdicts(results.get("cdm") or {}, results.get("cdm_diagnostics"))
-            + intra_verdicts(results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity"))
+def all_verdicts(results: dict, table=None) -> list[dict]:
+    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real).
+
+    With ``table`` (the long :class:`~evedge.bench.results.ResultsTable`), the
+    CDM, real-frame and RANSAC numbers the verdicts decide on are read from the
+    table (:func:`~evedge.bench.results.cdm_view`, ``real_view``, ``ransac_view``);
+    the diagnostics that explain the CDM and the lifetime histograms (peaks are
+    lists, not rows) still come from ``results``.
+    """
+    cdm, real = results.get("cdm") or {}, results.get("real") or {}
+    fmeasure, sensitivity = results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity")
+    if table is not None:
+        from .results import cdm_view, ransac_view, real_view
+
+        cdm, real = cdm_view(table), real_view(table)
+        if table.query(experiment="ransac"):
+            fmeasure, sensitivity = ransac_view(table)
+    return (cdm_verdicts(cdm, results.get("cdm_diagnostics"))
+            + intra_verdicts(fmeasure, sensitivity)
             + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
-            + real_verdicts(results.get("real") or {}))
+            + real_verdicts(real))
 
 
 def policy_effect(results: dict) -> dict | None:

@@ -42,7 +42,7 @@ import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
 from .renderer import GeometricTruth, Renderer
-from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
+from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
 #: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
@@ -178,6 +178,7 @@ class EventConverter:
         self.width = int(renderer.width)
         self.height = int(renderer.height)
         self._geometric = isinstance(renderer, GeometricTruth)
+        self._flow_at = callable(getattr(renderer, "flow_at", None))
         mode = params.sampling
         if mode == "auto":
             self.verified = bool(getattr(renderer, "continuous_in_time", True))
@@ -372,18 +373,21 @@ class EventConverter:
         if self._geometric:
             vx, vy, nx, ny = self.renderer.point_truth(x.astype(np.float64), y.astype(np.float64), t_true)
         else:
-            # sampled truth: flow and log-gradient interpolated between the two samples
+            # sampled truth: flow and log-gradient interpolated between the two samples; a renderer
+            # with flow_at (the 3-D ones) gives the exact flow at each event's pixel and time instead
             eps = self.params.log_eps
-            f0 = self._flow if self._flow is not None else np.asarray(self.renderer.flow(t0), dtype=np.float64)
-            f1 = np.asarray(self.renderer.flow(t1), dtype=np.float64)
-            self._flow = f1
             w = ((t_true - t0) / (t1 - t0)) if t1 > t0 else np.zeros_like(t_true)
-            vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
-            vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
-            l0 = np.log(i0.reshape(self.height, self.width) + eps)
-            l1 = np.log(i1.reshape(self.height, self.width) + eps)
-            g0x, g0y = gradient_direction(l0, x, y)
-            g1x, g1y = gradient_direction(l1, x, y)
+            if self._flow_at:
+                vx, vy = self.renderer.flow_at(x, y, t_true)
+            else:
+                f0 = self._flow if self._flow is not None else np.asarray(self.renderer.flow(t0), dtype=np.float64)
+                f1 = np.asarray(self.renderer.flow(t1), dtype=np.float64)
+                self._flow = f1
+                vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
+                vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
+            # the log only where the central differences need it (not the full frames)
+            g0x, g0y = log_gradient_direction_at(i0, eps, x, y, self.width, self.height)
+            g1x, g1y = log_gradient_direction_at(i1, eps, x, y, self.width, self.height)
             gx = (1 - w) * np.nan_to_num(g0x) + w * np.nan_to_num(g1x)
             gy = (1 - w) * np.nan_to_num(g0y) + w * np.nan_to_num(g1y)
             norm = np.hypot(gx, gy)

@@ -2,6 +2,7 @@
 
 import json
 import re
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -10,6 +11,8 @@ from evedge.bench.cli import bench
 from evedge.bench.exp_ransac import RansacStudyParams
 from evedge.bench.paper import run_paper
 from evedge.bench.report import write_report
+
+TINY_SCENE = Path(__file__).resolve().parents[1] / "data" / "tiny_shapes.toml"
 
 
 @pytest.fixture(scope="module")
@@ -264,3 +267,29 @@ def test_results_table_and_declarative_claims_agree_with_the_verdicts(tiny_run):
     assert "<b>" in board and "proposed (intra-pixel-area)" in board and "vs exact" in board
     for c in claims.values():
         assert str(escape(c["claim"])) in html
+
+
+def test_cli_prints_one_line_per_claim(tmp_path):
+    res = CliRunner().invoke(bench, ["paper", "-o", str(tmp_path / "o"), "--quick", "--only", "similarity",
+                                     "--scene", str(TINY_SCENE), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("  [")]
+    from evedge.bench.claims import CLAIMS
+
+    assert len(lines) == len(CLAIMS)
+    assert any("checks hold)" in ln for ln in lines)
+
+
+def test_verdicts_from_the_table_equal_those_from_the_nested_results(tiny_run):
+    from evedge.bench.results import cdm_view, read_results, real_view
+    from evedge.bench.verdicts import all_verdicts
+
+    out, res = tiny_run
+    table = read_results(out / "results.csv")
+    data = json.loads((out / "results.json").read_text())
+    nested = {k: res[k] for k in ("cdm", "real", "fmeasure", "truth_tolerance_sensitivity", "lifetime",
+                                  "lifetime_datasets", "cdm_diagnostics")}
+    assert all_verdicts(nested) == all_verdicts(nested, table) == res["verdicts"]
+    assert cdm_view(table).keys() == res["cdm"].keys()
+    assert {k: {m: v["median"] for m, v in per.items()} for k, per in real_view(table).items()} == \
+        {k: {m: v["median"] for m, v in per.items()} for k, per in data["real"].items()}
