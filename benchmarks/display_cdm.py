@@ -93,7 +93,8 @@ def main(argv=None) -> int:
               f"{'px/exact_thin':>15s}")
         for name in POLICIES:
             cells = [" / ".join(f"{res[(name, ref, s)]:.1f}" for s in secs) for ref in ("canny", "exact", "exact_thin")]
-            print(f"  {name:16s}" + "".join(f"{c:>22s}" for c in cells) + f"{res[(name, 'px/exact_thin', 'all')]:>15.2f}")
+            ratio = res[(name, "px/exact_thin", "all")]
+            print(f"  {name:16s}" + "".join(f"{c:>22s}" for c in cells) + f"{ratio:>15.2f}")
     print(f"\nCPU time {time.process_time() - t0:.1f} s (time.process_time, this process)")
     return 0
 

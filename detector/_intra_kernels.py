@@ -411,7 +411,8 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             syy += yq * wf[_KY, q]
             sxt += xq * wf[_KT, q]
             syt += yq * wf[_KT, q]
-        on = not (on_plane and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_rel)
+        on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta,
+                                                                  thr_us, thr_rel, on_plane)
         if intercept:
             # centred sums: least squares with a free time offset (the current event
             # becomes one point among the inliers instead of a fixed anchor)
@@ -436,7 +437,7 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
 
 
 @njit(cache=True)
-def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_rel):
+def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_rel, tol):
     """Whether the current event (the origin) lies on the plane of its past inliers (``event_on_plane``).
 
     ``s*`` are the raw (uncentred) least-squares sums over the winner's inliers,
@@ -444,7 +445,7 @@ def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_
     plane ``dt = a dx + b dy + c`` is fitted on the *past* inliers alone (leave the
     current event out: a fit that includes it is pulled towards it); the event is
     on it when its intra-pixel residual ``max(0, |c| - delta (|a| + |b|))`` is
-    within the inlier threshold of that plane. False when the past inliers
+    within ``tol`` times the inlier threshold of that plane. False when the past inliers
     alone fix no plane (all on one line). A background-activity event fired
     after an edge passed its pixel (or before it arrives) is off that plane by
     the time between them: no estimate.
@@ -464,7 +465,7 @@ def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_
     b = (cyt * cxx - cxt * cxy) / det
     c = (st - a * sx - b * sy) / n
     r = max(0.0, abs(c) - delta * (abs(a) + abs(b)))
-    return r <= thr_us + thr_rel * math.sqrt(a * a + b * b)
+    return r <= tol * (thr_us + thr_rel * math.sqrt(a * a + b * b))
 
 
 @njit(cache=True)

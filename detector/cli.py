@@ -282,7 +282,8 @@ def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> N
 @click.option("--display", type=click.Choice(["predecessor", "lifetime_only"]), default=None,
               help="How lifetimes become edge frames. Default predecessor (clear the pixel behind each event, "
                    "Mueggler's display), the same as the primary display of the report of evedge bench; "
-                   "lifetime_only: a pixel is edge while its newest event lives, nothing cleared.")
+                   "lifetime_only: a pixel is edge while its newest event lives (a burst from its first event), "
+                   "nothing cleared.")
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed of the method (same as --param seed=N).")
 @click.option("--embed-events/--no-embed-events", default=True, show_default=True,
               help="Store the events in detection.h5 (else only the source's sha256 and absolute path).")

@@ -20,8 +20,9 @@ two pixels thick. With it, a valid event continues its pixel's burst when the
 pixel's newest valid event has the same polarity and fired at most
 ``burst_lifetimes`` times its lifetime before (the estimator's rule,
 :class:`~evedge.detector.intra.IntraParams` ``burst_lifetimes``), and the pixel
-expires one lifetime after the burst's *first* event. 0 (default) is the
-paper's display.
+expires one lifetime after the burst's *first* event. 0 is the paper's
+display: the default, except under the ``lifetime_only`` display policy
+(:data:`DISPLAY_BURST_LIFETIMES`), whose edge maps are burst-aware.
 
 References
 ----------
@@ -34,10 +35,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size, columns
+from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
+                      columns)
 from ._edges_kernels import _DX, _DY, _edge_update
 
-__all__ = ["DISPLAYS", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind", "edge_frames"]
+__all__ = ["DISPLAYS", "DISPLAY_BURST_LIFETIMES", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind",
+           "edge_frames"]
 
 _INVALID = ("ignore", "clear")
 
@@ -45,6 +48,13 @@ _INVALID = ("ignore", "clear")
 #: image, never part of a method's name) -> ``clear_behind``. ``predecessor``: Mueggler et
 #: al.'s display, each event also clears the pixel behind it; ``lifetime_only``: nothing cleared.
 DISPLAYS = {"predecessor": True, "lifetime_only": False}
+
+#: ``burst_lifetimes`` of each display policy when :class:`EdgeImage` is given ``display`` and no
+#: ``burst_lifetimes`` (issue 11): the lifetime-only policy counts expiry from the burst's first
+#: event (without it a burst's trail is about twice as thick as the edge: lifetime-only CDM on
+#: stripes at 200 px/s 63 -> 88, ``benchmarks/display_cdm.py``); the predecessor's display keeps
+#: Mueggler et al.'s rule (each event alive from its own time; its clearing already thins the trail).
+DISPLAY_BURST_LIFETIMES = {"predecessor": 0.0, "lifetime_only": 1.0}
 
 #: The display of ``evedge detect`` by default and of the report's primary comparison: the
 #: authors' code is a fork of Mueggler et al.'s and inherits its display.
@@ -68,10 +78,12 @@ class EdgeImage:
         Clear the neighbour behind each valid event (Mueggler's display).
     invalid : {"ignore", "clear"}
         What an event without estimate does to its pixel.
-    burst_lifetimes : float
+    burst_lifetimes : float, optional
         >= 0; expiry counted from the burst's first event (module notes); 0 = from each event.
+        Default: the display policy's (:data:`DISPLAY_BURST_LIFETIMES`), else 0.
     display : {"predecessor", "lifetime_only"}, optional
-        A display policy of :data:`DISPLAYS`; sets ``clear_behind`` (then leave it unset).
+        A display policy of :data:`DISPLAYS`; sets ``clear_behind`` (then leave it unset) and,
+        unless given, ``burst_lifetimes``.
 
     Notes
     -----
@@ -80,12 +92,14 @@ class EdgeImage:
     """
 
     def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore",
-                 burst_lifetimes: float = 0.0, *, display: str | None = None) -> None:
+                 burst_lifetimes: float | None = None, *, display: str | None = None) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
-        check_positive("EdgeImage", "burst_lifetimes", burst_lifetimes, allow_zero=True)
-        self.burst_lifetimes = float(burst_lifetimes)
         if display is not None:
             clear_behind = display_clear_behind(display)
+        if burst_lifetimes is None:
+            burst_lifetimes = DISPLAY_BURST_LIFETIMES[display] if display is not None else 0.0
+        check_positive("EdgeImage", "burst_lifetimes", burst_lifetimes, allow_zero=True)
+        self.burst_lifetimes = float(burst_lifetimes)
         if not isinstance(clear_behind, (bool, np.bool_)):
             raise TypeError(f"clear_behind must be a bool, got {clear_behind!r}")
         if invalid not in _INVALID:
@@ -141,7 +155,8 @@ class EdgeImage:
 
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
-                invalid: str = "ignore", burst_lifetimes: float = 0.0, *, display: str | None = None) -> np.ndarray:
+                invalid: str = "ignore", burst_lifetimes: float | None = None, *,
+                display: str | None = None) -> np.ndarray:
     """Edge maps at the given instants (one-shot form of :class:`EdgeImage`).
 
     Parameters

@@ -162,37 +162,54 @@ def ref_event_on_plane(past, a_all, b_all, p, delta):
         return False
     (a, b, c), *_ = np.linalg.lstsq(X, T, rcond=None)
     r = max(0.0, abs(c) - delta * (abs(a) + abs(b)))
-    return r <= p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    return r <= p.event_on_plane * (p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b))
 
 
 def ref_stream(events, size, p: IntraParams):
-    """Whole estimator on a list of events with a dict SAE."""
+    """Whole estimator on a list of events with a dict SAE (burst grouping, start-up and border rules)."""
     sae = {}
     prev = {}  # (plane, x, y) -> (time, lifetime or nan, polarity) of the pixel's previous event
     half = p.window_size // 2
     out = []
+    burst = p.burst_lifetimes
     for g, e in enumerate(events):
-        x, y, t, pol = int(e["x"]), int(e["y"]), int(e["t"]), bool(e["p"])
+        x, y, t_ev, pol = int(e["x"]), int(e["y"]), int(e["t"]), bool(e["p"])
         plane = pol if p.per_polarity else 0
-        t_ev = t
-        pt, plt, ppol = prev.get((plane, x, y), (0, math.nan, None))
-        if p.burst_lifetimes > 0 and ppol == pol and t - pt <= p.burst_lifetimes * plt:
-            t = sae[(plane, x, y)]  # same burst: fitted at the burst's first time
+        key = (plane, x, y)
+        pt, plt, ppol = prev.get(key, (0, math.nan, None))
+        cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt
+        trial = p.burst_startup and burst > 0 and not cont and ppol == pol and math.isnan(plt)
+
+        def fit(t):
+            pts = []
+            for oy in range(-half, half + 1):
+                for ox in range(-half, half + 1):
+                    q = (plane, x + ox, y + oy)
+                    if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
+                        pts.append((float(ox), float(oy), float(sae[q] - t)))
+            return ref_fit(pts, p, p.seed, g, p.delta_px)[:3]
+
+        if cont or trial:
+            ok, a, b = fit(sae[key])  # fitted at the burst's first time
+            if trial:
+                if ok and t_ev - pt <= burst * math.hypot(a, b):
+                    cont = True
+                else:
+                    sae[key] = t_ev
+                    ok, a, b = fit(t_ev)
         else:
-            sae[(plane, x, y)] = t
-        pts = []
-        for oy in range(-half, half + 1):
-            for ox in range(-half, half + 1):
-                q = (plane, x + ox, y + oy)
-                if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
-                    pts.append((float(ox), float(oy), float(sae[q] - t)))
-        ok, a, b, _ = ref_fit(pts, p, p.seed, g, p.delta_px)
-        if ok:
+            sae[key] = t_ev
+            ok, a, b = fit(t_ev)
+        lt = math.sqrt(a * a + b * b) if ok else math.nan
+        b_px = p.border_px
+        inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
+        if ok and inside:
             g2 = a * a + b * b
-            out.append((math.sqrt(g2), a / g2 * 1e6, b / g2 * 1e6, True))
+            out.append((lt, a / g2 * 1e6, b / g2 * 1e6, True))
         else:
             out.append((math.nan, math.nan, math.nan, False))
-        prev[(plane, x, y)] = (t_ev, out[-1][0], pol)
+        keep = p.burst_startup and cont and not ok  # an invalid event inside a burst keeps the burst's lifetime
+        prev[key] = (t_ev, plt if keep else lt, pol)
     return np.array(out, dtype=LIFETIME_DTYPE)
 
 
@@ -231,8 +248,8 @@ def random_windows(n, side, rng):
     [IntraParams(), IntraParams(stop_probability=1.0, max_trials=7, min_inliers=3, min_points=3,
                                 fallback_all_points=False),
      IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
-     IntraParams(event_on_plane=True),
-     IntraParams(split_gap_ratio=3.0, event_on_plane=True)],
+     IntraParams(event_on_plane=1.0),
+     IntraParams(split_gap_ratio=3.0, event_on_plane=1.0)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
@@ -271,7 +288,7 @@ def test_two_means_reference_properties():
 def test_stream_matches_reference(random_events, per_polarity):
     size = SensorSize(9, 7)
     ev = random_events(400, size.width, size.height, duration_us=30_000, rng=3)
-    params = IntraParams(per_polarity=per_polarity, min_inliers=4, min_points=4, seed=5)
+    params = IntraParams(per_polarity=per_polarity, min_inliers=4, min_points=4, seed=5, border_px=1)
     got = estimate_lifetimes(ev, size, params)
     want = ref_stream(ev, size, params)
     assert_lifetimes_close(got, want)
@@ -529,7 +546,7 @@ def test_gap_split_drops_the_middle_stale_level():
     # the paper's split keeps the column one period old (dt = -19000) with the current ones
     keep = ref_two_means([v for v in w.ravel()[np.arange(25) != 12] if not np.isnan(v)])
     assert not all(keep) and sum(keep) == 14 + 5  # 3 current columns (less the centre) + the middle stale one
-    fit = fit_window(w, IntraParams(split_gap_ratio=1.0, event_on_plane=True))
+    fit = fit_window(w, IntraParams(split_gap_ratio=1.0, event_on_plane=1.0))
     assert fit.ok
     assert fit.lifetime_us == pytest.approx(1000.0, rel=1e-9)
     assert not fit.inliers[:, 3:].any()  # no stale pixel is an inlier
@@ -551,9 +568,9 @@ def test_event_on_plane_rejects_an_event_off_its_neighbours_plane():
     w[:, 3:] = np.nan
     w -= 30_000.0
     w[2, 2] = 0.0  # the current event, long after
-    assert not fit_window(w, IntraParams(event_on_plane=True)).ok
+    assert not fit_window(w, IntraParams(event_on_plane=1.0)).ok
     w[2, 2] = -30_000.0  # on the plane: accepted
-    assert fit_window(w, IntraParams(event_on_plane=True)).ok
+    assert fit_window(w, IntraParams(event_on_plane=1.0)).ok
 
 
 def test_event_on_plane_noise_only_stream():
@@ -567,7 +584,7 @@ def test_event_on_plane_noise_only_stream():
     from evedge.detector.pipeline import detect
 
     off = detect(ev, size, params=IntraParams()).lifetimes["valid"]
-    on = detect(ev, size, params=IntraParams(event_on_plane=True)).lifetimes["valid"]
+    on = detect(ev, size, params=IntraParams(event_on_plane=1.0)).lifetimes["valid"]
     assert on.mean() < 0.10 < off.mean()
 
 
@@ -604,7 +621,7 @@ def test_burst_startup_on_the_first_passage():
 
 def test_burst_startup_streaming_equals_one_shot():
     ev, _ = _burst_edge()
-    p = IntraParams(burst_startup=True, split_gap_ratio=3.0, event_on_plane=True)
+    p = IntraParams(burst_startup=True, split_gap_ratio=3.0, event_on_plane=1.0)
     want = estimate_lifetimes(ev, SensorSize(24, 24), p)
     est = IntraPixelLifetime(SensorSize(24, 24), p)
     parts = [est.process(ev[i:i + 97]) for i in range(0, ev.size, 97)]
