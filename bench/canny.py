@@ -29,7 +29,8 @@ shapes_translation and real slider_depth 240x180 frames, every setting: on
 every frame at least 90 % of each map's edge pixels lie within 1 px of an edge
 pixel of the other map, and at least 97 % on average over the frames (measured
 2026-12-01: worst frame 93.5 %, mean 97.6-99.4 %). Speed on a 240x180 frame
-(CPU, one core, ``matlab_0.3``): 3.5 ms (skimage) against 1.0 ms (OpenCV).
+(``benchmarks/bench_cdm.py``, CPU, one core): 2.6-3.0 ms (skimage) against
+0.6-0.9 ms (OpenCV) for the MATLAB-style settings.
 
 References
 ----------

@@ -504,8 +504,11 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
-                  out_valid):
+                  out_valid, wf, wi):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
+
+    ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
+    (made once by the caller: a strip may be resumed many times).
 
     The state covers sensor rows ``row0 .. row0 + rows - 1`` of the ``width x height``
     sensor (all of it, or a strip and its halo, see :mod:`evedge.detector._tiles`):
@@ -544,8 +547,6 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     edge (its window is clipped) is reported without estimate; its fit still
     sets the burst state of its pixel, as any other event's.
     """
-    side = 2 * half + 1
-    wf, wi = _scratch(side * side)
     log_fail = _log_fail(stop_prob)
     publish = dec.shape[0] > 0
     for j in range(j0, idx.shape[0]):

@@ -10,25 +10,28 @@ Event buffer (radius 1)
     by the strip, so its decision is the serial one (:func:`filter_tiled`).
 Intra-pixel estimator (window radius ``h``)
     An owned event's window reads the SAE up to ``h`` rows outside the strip
-    (the *inner halo*). An SAE value there is written by a halo event, and
-    whether that event kept its pixel's burst time depends on the lifetime
-    estimated for the pixel's previous event, whose window reaches ``2 h``
-    rows out, and so on: the dependence has no finite radius. The strips are
-    therefore run speculatively and checked (:func:`intra_tiled`): a strip
-    first processes every event up to ``2 h`` rows out (the inner halo's
-    events fitted with full windows, the outer ones with clipped windows);
-    its owned events are exactly the serial ones when every inner-halo event
-    took the same burst decision as in the strip that owns it (by induction
-    over time: the SAE values an owned event reads are then the serial ones).
-    A strip where one differs is replayed with the owners' decisions imposed
-    on its inner-halo events (which are then not fitted), until no decision
-    differs; the earliest differing decision moves later in time with every
-    round, so this ends, and it ends in the serial result. Without burst
-    grouping (``burst_lifetimes = 0``) no decision can differ.
+    (the halo). An SAE value there is written by a halo event, and whether
+    that event kept its pixel's burst time depends on the lifetime estimated
+    for the pixel's previous event, whose window reaches ``2 h`` rows out, and
+    so on: the dependence has no finite radius, so no fixed halo is enough by
+    itself. Instead the strip that owns an event publishes its burst decision
+    (new burst / continues the burst; an atomic int8 per event), and the
+    strips whose halo holds the event replay it with that decision (the SAE
+    update only, no fit), waiting for it when it is not published yet. By
+    induction over time the SAE every owned event reads is the serial one, so
+    every strip gives exactly the serial result (:func:`intra_tiled`). No
+    strip waits forever: the one holding the earliest unprocessed event needs
+    only decisions of earlier events, already taken.
 
 Random draws are keyed by the event's global index, so they do not depend on
-the strip either. Strips are as even as possible in rows; each runs on one
-numba thread (``prange``).
+the strip either. Strips are as even as possible in rows. The buffer's strips
+run one per ``prange`` iteration; the estimator's are shared by numba's
+threads (:func:`_intra_parallel`): a worker runs any free strip until it needs
+a decision not yet published, then moves to another. Several narrow strips per
+thread keep the threads busy when the events move across the sensor: with 2
+row strips, an edge sweeping the rows of ``stripes.mat`` feeds one strip at a
+time (at most 1.49x on 2 threads, from the events per strip per ms); with 8
+strips shared by 2 threads, at most 1.84x (shapes_translation: 1.86 / 1.81x).
 """
 
 from __future__ import annotations
@@ -37,8 +40,9 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ._atomic import _claim, _load_acquire, _sched_yield, _store_release
 from ._buffer_kernels import _buffer_scan
-from ._intra_kernels import _intra_stream
+from ._intra_kernels import _intra_stream, _scratch
 
 _NEVER = np.iinfo(np.int64).min
 _DEBUG = False
@@ -112,48 +116,52 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 
 @njit(parallel=True, cache=True)
-def _intra_parallel(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo, own_hi, dec,
-                    burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                    min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx,
-                    out_vy, out_valid):
-    """Every strip on its own thread; a halo event waits for its owner's decision."""
-    for s in prange(lo.shape[0]):
-        o0 = off[s]
-        o1 = off[s + 1]
-        _intra_stream(x, y, t, p, idx[starts[s]:starts[s + 1]], 0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
-                      prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s], dec, True,
-                      per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers,
-                      intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
-                      out_valid)
+def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo,
+                    own_hi, dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
+                    min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt,
+                    out_vx, out_vy, out_valid):
+    """``n_threads`` workers share the strips: each takes any free strip, runs it until it needs a
+    decision not yet taken (or to its end), gives it back, and moves on.
 
-
-@njit(cache=True)
-def _intra_interleaved(x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo, own_hi,
-                       dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
-                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border,
-                       out_lt, out_vx, out_vy, out_valid):
-    """The strips on one thread, each run until it needs a decision not yet taken (more strips than threads).
-
+    A strip is run by one worker at a time (``busy``, taken by compare-and-swap).
     The strip holding the earliest unprocessed event never waits (a decision it
-    needs is of an earlier event, already processed), so every pass progresses.
+    needs is of an earlier event, already taken), so some strip always
+    progresses, whatever the number of workers and however the system schedules
+    them; many narrow strips keep the workers busy when the events move across
+    the sensor (an edge sweeping the rows feeds one strip at a time).
     """
     n_tiles = lo.shape[0]
+    busy = np.zeros(n_tiles, np.int64)
     cursor = np.zeros(n_tiles, np.int64)
-    while True:
-        done = True
-        for s in range(n_tiles):
-            seg = idx[starts[s]:starts[s + 1]]
-            if cursor[s] < seg.shape[0]:
-                o0 = off[s]
-                o1 = off[s + 1]
-                cursor[s] = _intra_stream(x, y, t, p, seg, cursor[s], g0, sae[o0:o1], prev_t[o0:o1],
-                                          prev_lt[o0:o1], prev_pol[o0:o1], burst, width, height, lo[s], rows[s],
-                                          own_lo[s], own_hi[s], dec, False, per_pol, half, delta, thr_us, thr_rel,
-                                          max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
-                                          gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy, out_valid)
-                done = done and cursor[s] == seg.shape[0]
-        if done:
-            return
+    for th in prange(n_threads):
+        wf, wi = _scratch((2 * half + 1) ** 2)  # the worker's own, reused by every strip it runs
+        s = th % n_tiles
+        idle = 0
+        while True:
+            finished = 0
+            progressed = False
+            for _ in range(n_tiles):
+                seg = idx[starts[s]:starts[s + 1]]
+                if _load_acquire(cursor, s) == seg.shape[0]:
+                    finished += 1
+                elif _claim(busy, s):
+                    j0 = cursor[s]
+                    o0 = off[s]
+                    o1 = off[s + 1]
+                    j = _intra_stream(x, y, t, p, seg, j0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
+                                      prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
+                                      dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
+                                      min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
+                                      startup, border, out_lt, out_vx, out_vy, out_valid, wf, wi)
+                    _store_release(cursor, s, j)
+                    _store_release(busy, s, 0)
+                    progressed = progressed or j > j0
+                s = (s + 1) % n_tiles
+            if finished == n_tiles:
+                break
+            idle = 0 if progressed else idle + 1
+            if idle > 0:
+                _sched_yield()
 
 
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple):
@@ -163,8 +171,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
     ``burst`` to ``border`` without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
-    fallback, seed, gap_ratio, on_plane, startup, border``); ``outs`` is ``(lt, vx, vy, valid)``. The strips run on their own
-    threads when numba has that many, else interleaved on one.
+    fallback, seed, gap_ratio, on_plane, startup, border``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
+    shared by ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`).
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
@@ -181,9 +189,9 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     for s in range(n_tiles):
         for g, l in zip(state, local):
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
-    kernel = _intra_parallel if n_tiles <= numba.get_num_threads() else _intra_interleaved
-    kernel(x, y, t, p, g0, idx, starts, off, *local, lo, rows, own_lo, own_hi, np.zeros(x.shape[0], np.int8),
-           kernel_args[0], width, height, *kernel_args[1:], *outs)
+    _intra_parallel(min(n_tiles, numba.get_num_threads()), x, y, t, p, g0, idx, starts, off, *local, lo, rows,
+                    own_lo, own_hi, np.zeros(x.shape[0], np.int8), kernel_args[0], width, height, *kernel_args[1:],
+                    *outs)
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
         for g, l in zip(state, local):

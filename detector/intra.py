@@ -233,7 +233,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
-from ._intra_kernels import _fit_windows, _intra_stream
+from ._intra_kernels import _fit_windows, _intra_stream, _scratch
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
 from .protocols import METHODS
@@ -460,7 +460,7 @@ class IntraPixelLifetime:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
                           self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
-                          lt, vx, vy, valid)
+                          lt, vx, vy, valid, *_scratch(pr.window_size**2))
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))

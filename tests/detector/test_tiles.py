@@ -30,7 +30,7 @@ def sim_stripes():
     return rec.events, rec.sensor_size
 
 
-# up to numba's thread count (2 here) the strips run on their own threads, more are interleaved on one
+# the strips are shared by numba's threads (2 here): as many strips as threads, and more
 TILES = (2, 3, 5, 16)
 
 
@@ -106,3 +106,19 @@ def test_n_tiles_errors(bad, err):
         check_n_tiles(bad, 180)
     with pytest.raises(err, match="n_tiles"):
         estimate_lifetimes(np.zeros(0, dtype=EVENT_DTYPE), (240, 180), n_tiles=bad)
+
+
+def test_estimator_strips_on_a_single_worker(shapes):
+    """With one numba thread, one worker runs all the strips in turn: still the serial bytes."""
+    import numba
+
+    events, size = shapes
+    sub = events[:30_000]
+    serial = estimate_lifetimes(sub, size)
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        tiled = estimate_lifetimes(sub, size, n_tiles=6)
+    finally:
+        numba.set_num_threads(before)
+    assert tiled.tobytes() == serial.tobytes()
