@@ -205,7 +205,7 @@ def test_real_claim_under_both_policies_and_the_headline():
     assert (pol["lifetime_only"]["holds"], pol["lifetime_only"]["fails"]) == (0, 4)
     text = summ["text"]
     assert "primary comparison uses the predecessor display" in text and "fork" in text
-    assert "lifetime-only display (nothing cleared), 0 of 4 CDM claims hold and 4 fail" in text
+    assert "lifetime-only display (nothing cleared; a burst lives from its first event), 0 of 4 CDM claims hold and 4 fail" in text
     assert "scene, vs exact: slow 74.0 vs 43.0, fast 54.0 vs 62.0" in text
     assert "r, vs c: 70.0 vs 60.0" in text
 
