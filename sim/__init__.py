@@ -12,10 +12,11 @@ Main entry points: :func:`simulate`, :func:`load_scene`, :func:`parse_scene`.
 from .converter import ConverterParams, EventConverter
 from .renderer import GeometricTruth, Renderer
 from .scene import SENSOR_PRESETS, Scene, SceneError, load_scene, parse_scene
-from .simulate import edge_map, render_frame, simulate
+from .simulate import edge_map, render_frame, simulate, thin_edge_map
 from .truth import TRUTH_DTYPE
 
 __all__ = [
     "ConverterParams", "EventConverter", "GeometricTruth", "Renderer", "SENSOR_PRESETS", "Scene",
     "SceneError", "TRUTH_DTYPE", "edge_map", "load_scene", "parse_scene", "render_frame", "simulate",
+    "thin_edge_map",
 ]

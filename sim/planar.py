@@ -22,6 +22,7 @@ import numpy as np
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
+from .thin_edges import mark_circle, mark_segments, mark_stripes
 
 #: Coverage tolerance of the edge-map definition (px^2).
 EDGE_AREA_TOL = 1e-9
@@ -202,6 +203,18 @@ class ShapesRenderer(_CoverageRenderer):
                      self._may_overlap, cx, cy, math.cos(theta), math.sin(theta), sx, sy, self._qx, self._qy, boxes)
         return boxes
 
+    def thin_edges(self, t_s: float) -> np.ndarray:
+        """Thin exact edge map at ``t_s``: one pixel per boundary crossing of each row and column
+        (:mod:`evedge.sim.thin_edges`)."""
+        img = np.zeros((self.height, self.width), dtype=bool)
+        for poly in self.polygons:
+            px, py = self.motion.to_image(poly.vertices_px[:, 0], poly.vertices_px[:, 1], float(t_s))
+            mark_segments(img, px, py, np.roll(px, -1), np.roll(py, -1))
+        for c in self.circles:
+            cx, cy = self.motion.to_image(np.array([c.center_px[0]]), np.array([c.center_px[1]]), float(t_s))
+            mark_circle(img, float(cx[0]), float(cy[0]), c.radius_px)
+        return img
+
     def flow(self, t_s: float) -> np.ndarray:
         yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
         vx, vy = self.motion.flow_at(xx, yy, t_s)
@@ -292,6 +305,16 @@ class StripesRenderer(_CoverageRenderer):
             _render_stripes(out, edge, w, layer.rows[0], min(layer.rows[1], h), nx, ny, offset,
                             layer.period_px, layer.duty, layer.dark, layer.light, EDGE_AREA_TOL)
         return np.array([0, h, 0, w], dtype=np.int64)  # stripes change everywhere
+
+    def thin_edges(self, t_s: float) -> np.ndarray:
+        """Thin exact edge map at ``t_s``: one pixel per stripe-boundary crossing of each row and column
+        (:mod:`evedge.sim.thin_edges`)."""
+        img = np.zeros((self.height, self.width), dtype=bool)
+        for layer in self.layers:
+            nx, ny = layer.normal
+            offset = nx * layer.velocity_px_s[0] * t_s + ny * layer.velocity_px_s[1] * t_s + layer.phase_px
+            mark_stripes(img, layer.rows[0], layer.rows[1], nx, ny, offset, layer.period_px, layer.duty)
+        return img
 
     def intensity_into(self, t_s: float, out: np.ndarray, dirty: np.ndarray | None) -> np.ndarray:
         """As :meth:`_CoverageRenderer.intensity_into`; the stripes overwrite their rows, so no reset."""
