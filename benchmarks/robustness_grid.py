@@ -24,7 +24,8 @@ Run ``.venv/bin/python benchmarks/robustness_grid.py --quick`` (a reduced grid,
 a few minutes on one core) or without ``--quick`` for the whole grid;
 ``--intra key=value`` (repeatable) changes an :class:`~evedge.detector.intra.IntraParams`
 field, e.g. ``--intra split=paper`` to measure a departure from the paper;
-``--csv FILE`` writes every cell's figures, ``--plot FILE.png`` draws them (clean stripes:
+``--scene SCENE.toml`` scores one scene file instead (the ``--intra`` parameters,
+:func:`~evedge.detector.intra.robust_params` and Mueggler's); ``--csv FILE`` writes every cell's figures, ``--plot FILE.png`` draws them (clean stripes:
 median error and share > 2x off against speed per contrast ratio, median over the angles;
 noisy cells: share of noise events given a lifetime against the noise rate).
 """
@@ -199,9 +200,13 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=None, help="only cells whose kind is this (stripes, rotation, shapes)")
     ap.add_argument("--csv", default=None)
     ap.add_argument("--plot", default=None, help="write a figure of the grid (PNG)")
+    ap.add_argument("--scene", default=None, metavar="SCENE.toml",
+                    help="instead of the grid: score one scene file (defaults, robust_params(), Mueggler)")
     args = ap.parse_args(argv)
     from tqdm import tqdm
 
+    if args.scene:
+        return score_scene(args.scene, _parse_intra(args.intra))
     size = args.size or ("64x48" if args.quick else "96x72")
     width, height = (int(v) for v in size.lower().split("x"))
     params = _parse_intra(args.intra)
@@ -251,6 +256,25 @@ def _goals(r) -> dict:
     med, o2, sig, nz = (r[f"intra_{k}"] for k in ("med", "over2x", "sig", "noise"))
     return {"med": bool(med <= med_goal), "over2x": bool(o2 <= 0.01), "sig": bool(sig >= sig_goal),
             "noise": bool(noisy and nz <= 0.10)}
+
+
+def score_scene(path, params) -> int:
+    """Score one scene file: the detector with ``params``, with :func:`robust_params`, and Mueggler's."""
+    from evedge.detector.intra import robust_params
+    from evedge.sim import load_scene
+
+    rec = simulate(load_scene(path), progress=False)
+    runs = {f"intra {params}": dict(method="intra", params=params),
+            "intra robust_params()": dict(method="intra", params=robust_params()),
+            "mueggler": dict(method="mueggler")}
+    print(f"{path}: {rec.events.size} events ({100 * rec.truth['is_signal'].mean():.1f} % signal); steady state "
+          f"from {STEADY_US} us")
+    for name, kw in runs.items():
+        sc = score(rec, detect(rec.events, rec.sensor_size, **kw).lifetimes)
+        print(f"  {name}\n    median error {100 * sc['med']:.1f} %, > 2x off {100 * sc['over2x']:.2f} %, "
+              f"signal estimated {100 * sc['sig']:.1f} %, noise given a lifetime {100 * sc['noise']:.1f} %, "
+              f"first 0.1 s error {100 * sc['first']:.1f} %")
+    return 0
 
 
 def plot(rows, methods, path) -> None:

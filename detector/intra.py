@@ -115,14 +115,17 @@ passes the buffer usually fires after an edge passed its neighbours (or before
 it arrives): RANSAC through it finds planes among them, and with a threshold
 relative to the candidate's lifetime a steep plane absorbs far points. With the
 check the plane is refitted on the winner's *past* inliers alone and the event
-must be an inlier of it (and those inliers must fix a plane). Alone, on
-``stripes.toml``: noise events given a lifetime 22.6 % -> 8.9 %, but signal
-estimated 98.9 % -> 92.1 % and median error 2.0 -> 3.8 %: the paper's split
-leaves one-line clusters whose past points fix no plane. With the linkage split
-those are rare; the preset (linkage + check + start-up rule) gives 1.8 %
-median error, 98.2 % estimated, 2.3 % more than 2x off (default 3.6 %) and
-10.6 % of the noise events with a lifetime (Mueggler, unfiltered: 6.9 %,
-77.1 %, 0.4 %, 7.2 %). A variant that accepted events whose past inliers fix
+must be an inlier of it (and those inliers must fix a plane). On
+``stripes.toml`` (``benchmarks/robustness_grid.py --scene scenes/stripes.toml``,
+steady state after 0.1 s): alone, noise events given a lifetime 22.6 % -> 10.0 %,
+signal estimated 99.8 % -> 98.6 %, median error 2.0 % either way. Over all
+events and without the start-up rule it cost more (estimated 98.9 -> 92.1 %,
+median error 2.0 -> 3.8 %): in the first passage the paper's split leaves
+one-line clusters whose past points fix no plane. The preset (linkage split +
+check + start-up rule): median error 1.9 %, 0.88 % more than 2x off (defaults
+0.97 %), 99.3 % estimated, 10.6 % of the noise events with a lifetime,
+first-0.1 s error 1.1 % (defaults 2.5 %); Mueggler, unfiltered: 6.9 %, 0.22 %,
+86.9 %, 7.2 %, 7.3 %. A variant that accepted events whose past inliers fix
 no plane kept a little more signal but let more noise through (quick grid,
 check alone: worst noisy cell 21.7 -> 29.3 %; 0 degrees, 200 px/s, r = 5,
 5 Hz: 13.6 -> 29.3 %); it was dropped. A looser check (``event_on_plane`` 2 / 3 thresholds instead
