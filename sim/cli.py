@@ -19,10 +19,13 @@ import click
 @click.option("--format", "fmt", type=click.Choice(["h5", "ecd"]), default="h5", show_default=True,
               help="h5: events, truth, frames, edges, scene and versions (evedge HDF5); "
                    "ecd: Event Camera Dataset text folder (events and frames only).")
+@click.option("--sensor", "sensor", default=None, metavar="PRESET",
+              help="Render the scene on this sensor preset instead of its own (dvs128, davis240, davis346, "
+                   "dvxplorer, gen3, gen4; see evedge.sensors); scene coordinates stay in pixels.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: str, quiet: bool) -> None:
+def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: str, sensor, quiet: bool) -> None:
     """Simulate the scene file SCENE (TOML, see sim/SCENES.md) and write it to OUTPUT."""
-    from .scene import SceneError, load_scene
+    from .scene import SceneError, load_scene, with_sensor
     from .simulate import simulate as run
 
     from evedge.io import write_ecd, write_recording
@@ -37,8 +40,13 @@ def simulate(scene: Path, output: Path, seed, duration_s, frame_rate_hz, fmt: st
     if fmt == "ecd" and output.exists() and not output.is_dir():
         raise click.BadParameter(f"{output} is an existing file; --format ecd writes a folder",
                                  param_hint="'-o' / '--output'")
+    if sensor is not None:
+        from evedge.sensors import SENSOR_MODELS
+        if sensor.strip().lower() not in SENSOR_MODELS:
+            raise click.BadParameter(f"unknown sensor preset {sensor!r}; known: {sorted(SENSOR_MODELS)}",
+                                     param_hint="'--sensor'")
     try:
-        parsed = load_scene(scene)
+        parsed = load_scene(scene) if sensor is None else with_sensor(load_scene(scene), sensor)
         rec = run(parsed, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=not quiet)
         path = write_recording(output, rec) if fmt == "h5" else write_ecd(output, rec)
     except (SceneError, ValueError, TypeError, OSError, MemoryError) as err:

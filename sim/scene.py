@@ -15,16 +15,15 @@ from typing import Any
 
 import numpy as np
 
+from evedge.sensors import SENSOR_MODELS
+
 from .converter import ConverterParams
 
-#: Sensor presets: size and pinhole intrinsics (fx, fy, cx, cy) in px.
-#: davis240: the Event Camera Dataset's calibration of its DAVIS240C
-#: (shapes sequences); dvs128: a 4.5 mm lens on 40 um pixels (fx = 112.5).
-SENSOR_PRESETS = {
-    "dvs128": dict(width=128, height=128, fx=112.5, fy=112.5, cx=63.5, cy=63.5),
-    "davis240": dict(width=240, height=180, fx=199.092, fy=198.829, cx=132.192, cy=110.713),
-    "davis346": dict(width=346, height=260, fx=260.0, fy=260.0, cx=172.5, cy=129.5),
-}
+#: Sensor presets: size and pinhole intrinsics (fx, fy, cx, cy) in px, from
+#: :data:`evedge.sensors.SENSOR_MODELS` (davis240: the Event Camera Dataset's
+#: calibration of its DAVIS240C; the others a nominal lens).
+SENSOR_PRESETS = {name: dict(width=m.width, height=m.height, fx=m.fx, fy=m.fy, cx=m.cx, cy=m.cy)
+                  for name, m in SENSOR_MODELS.items()}
 
 SCENE_KINDS = ("stripes", "shapes", "mesh")
 #: Longest scene: event times are int64 microseconds (2**63 us is about 9.22e12 s).
@@ -201,6 +200,12 @@ def _sensor(t: _Table) -> Sensor:
 
 def _params(t: _Table) -> ConverterParams:
     d = ConverterParams()
+    if t.has("preset"):
+        # a sensor's typical pixel settings (evedge.sensors); the keys below still override them
+        name = t.string("preset", "")
+        if name not in SENSOR_MODELS:
+            t.fail("preset", f"unknown preset {name!r}; known: {sorted(SENSOR_MODELS)}")
+        d = ConverterParams(**SENSOR_MODELS[name].event_params)
     kw = dict(
         contrast_pos=t.number("contrast_pos", d.contrast_pos, lo=0, lo_open=True),
         contrast_neg=t.number("contrast_neg", d.contrast_neg, lo=0, lo_open=True),
@@ -396,6 +401,38 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     return Scene(name=name, kind=kind, source=source, duration_s=duration, seed=seed, frame_rate_hz=frame_rate,
                  sensor=sensor, params=params, background=background, objects=objects, motion=motion,
                  sections=tuple(sections), description=description, raw=data)
+
+
+def with_sensor(scene: Scene, preset: str) -> Scene:
+    """``scene`` re-validated on the sensor preset ``preset`` (its own ``[sensor]`` table replaced).
+
+    Scene coordinates (shape centres, ...) stay in pixels; fractions of the
+    image (stripe bands) follow the new size.
+
+    Parameters
+    ----------
+    scene : Scene
+    preset : str
+        A name of :data:`evedge.sensors.SENSOR_MODELS`.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        Unknown preset (named with the known ones).
+
+    Examples
+    --------
+    >>> s = with_sensor(load_scene("scenes/stripes.toml"), "gen4")  # doctest: +SKIP
+    >>> (s.sensor.width, s.sensor.height)  # doctest: +SKIP
+    (1280, 720)
+    """
+    data = dict(scene.raw)
+    data["sensor"] = {"preset": str(preset).strip().lower()}
+    return parse_scene(data, source=scene.source)
 
 
 def load_scene(path) -> Scene:

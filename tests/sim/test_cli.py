@@ -80,3 +80,13 @@ def test_frames_too_big_for_memory_is_named():
 
     with pytest.raises(MemoryError, match=r"simulate: 10000000000001 frames and edge maps of 128x128 .* GiB"):
         run(SCENES / "stripes.toml", duration_s=1e7, frame_rate_hz=1e6, progress=False)
+
+
+def test_simulate_sensor_preset(tmp_path):
+    out = tmp_path / "g.h5"
+    res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "-o", str(out), "--duration", "0.0005",
+                                        "--sensor", "gen4", "--frame-rate", "0", "--quiet"])
+    assert res.exit_code == 0, res.output
+    assert "1280x720" in res.output
+    res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "-o", str(out), "--sensor", "gen9"])
+    assert res.exit_code != 0 and "unknown sensor preset 'gen9'" in res.output and "gen4" in res.output
