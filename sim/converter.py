@@ -41,12 +41,19 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
+from ._exact import _crossing_levels, _illinois_start, _illinois_step, _refractory_jitter
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
 from evedge.events import EVENT_DTYPE
 
 #: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
 _NOISE_BLOCK_S = 0.01
+#: Values of ``ConverterParams.crossing_times``.
+CROSSING_TIMES = ("auto", "exact", "linear")
+#: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
+EXACT_TOL_S = 1e-11
+#: ... or after this many Illinois steps (a safeguard; about 10 are needed).
+_EXACT_MAX_STEPS = 100
 
 
 @dataclass(frozen=True)
@@ -85,6 +92,12 @@ class ConverterParams:
         ``"auto"`` (verified unless the renderer has an attribute
         ``continuous_in_time`` set to False), ``"verified"`` or
         ``"predicted"`` (see the module docstring).
+    crossing_times : str
+        ``"auto"`` (exact when the renderer offers ``pixel_intensity`` and
+        geometric truth, as the analytic planar renderers do; linear
+        otherwise), ``"exact"`` (solve the pixel's closed-form intensity for
+        each crossing instant, see the module docstring) or ``"linear"``
+        (ESIM's interpolation of ``L`` between the samples).
     """
 
     contrast_pos: float = 0.2
@@ -100,13 +113,17 @@ class ConverterParams:
     max_step_px: float = 0.5
     min_step_s: float = 1e-6
     sampling: str = "auto"
+    crossing_times: str = "auto"
 
     def __post_init__(self) -> None:
         if self.sampling not in ("auto", "verified", "predicted"):
             raise ValueError("ConverterParams.sampling must be 'auto', 'verified' or 'predicted', "
                              f"got {self.sampling!r}")
+        if self.crossing_times not in CROSSING_TIMES:
+            raise ValueError(f"ConverterParams.crossing_times must be one of {list(CROSSING_TIMES)}, "
+                             f"got {self.crossing_times!r}")
         for name, value in asdict(self).items():
-            if name == "sampling":
+            if name in ("sampling", "crossing_times"):
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ConverterParams.{name} must be a finite number, got {value!r}")
@@ -127,6 +144,11 @@ class ConverterParams:
         ):
             if getattr(self, name) > hi:
                 raise ValueError(f"ConverterParams.{name} must be <= {hi:g} ({why}), got {getattr(self, name)}")
+
+
+def _ns(t_s: np.ndarray) -> np.ndarray:
+    """Emitted times in int64 nanoseconds (the truth's ``t_ns``; ``t`` of the events is the same time in us)."""
+    return np.rint(t_s * 1e9).astype(np.int64)
 
 
 def _seeds(seed: int):
@@ -183,6 +205,11 @@ class EventConverter:
             self.verified = bool(getattr(renderer, "continuous_in_time", True))
         else:
             self.verified = mode == "verified"
+        can_exact = self._geometric and callable(getattr(renderer, "pixel_intensity", None))
+        if params.crossing_times == "exact" and not can_exact:
+            raise ValueError(f"ConverterParams.crossing_times='exact' needs a renderer with pixel_intensity and "
+                             f"point_truth; {type(renderer).__name__} has not both (use 'linear' or 'auto')")
+        self.exact = can_exact and params.crossing_times != "linear"
         self.reset()
 
     def reset(self) -> None:
@@ -228,8 +255,10 @@ class EventConverter:
             _noise_first_arrivals(p.noise_rate_hz, self._noise_time_seed, self.noise_next)
         self._dt = min(1.0 / p.min_rate_hz, 1e-4)
         self._pending: list[dict[str, np.ndarray]] = []
+        self._raw: list[tuple] = []  # exact mode: crossings awaiting their exact times
         self.n_samples = 0
         self.n_rejected = 0
+        self.n_root_steps = 0
         self.done = False
 
     # ------------------------------------------------------------------ sampling
@@ -336,6 +365,10 @@ class EventConverter:
         args = self._kernel_args(t0, t1, i0, i1)
         empty_i, empty_f, empty_b = self._empty
         n = moved = 0
+        if self.exact:
+            if n_cand:
+                self._raw_crossings(t0, t1, i0, i1, n_cand)
+            n_cand = 0  # the linear path below has nothing left to do
         if n_cand:
             # two-pass sizing over the candidates: count, then fill
             n, moved = _crossings(*args, False, self._cand, n_cand, empty_i, empty_f, empty_f, empty_b)
@@ -349,7 +382,7 @@ class EventConverter:
             # geometric truth is computed per flush, in one vectorised call (cheaper than per sample)
             truth = None if self._geometric else self._truth(pix, t_true, t0, t1, i0, i1)
             self._pending.append((pix, t_emit, t_true, pol, truth))
-        else:
+        elif not self.exact:
             self._flow = None
         if p.noise_rate_hz > 0 and t1 > self._noise_until:
             # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
@@ -364,6 +397,65 @@ class EventConverter:
                 pol = np.empty(m, dtype=np.bool_)
                 _noise(*nargs, True, pix, tn, pol)
                 self._pending.append((pix, tn, tn, pol, False))  # False: noise, no truth
+
+    def _raw_crossings(self, t0, t1, i0, i1, n_cand) -> None:
+        """Exact mode: the crossings of one interval with their levels, kept until :meth:`_refine`."""
+        p = self.params
+        e = np.empty(0)
+        n, moved = _crossing_levels(i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos,
+                                    self.cneg, False, self._cand, n_cand, self._empty[0], e, e, self._empty[2])
+        if not moved:
+            return
+        pix = np.empty(n, dtype=np.int64)
+        level = np.empty(n)
+        t_lin = np.empty(n)
+        pol = np.empty(n, dtype=np.bool_)
+        _crossing_levels(i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg, True,
+                         self._cand, n_cand, pix, level, t_lin, pol)
+        # the sample buffers are reused: keep the two end values of every crossing's pixel
+        self._raw.append((pix, level, pol, t0, t1, i0[pix], i1[pix]))
+
+    def _refine(self) -> None:
+        """Exact mode: solve every pending crossing for its instant, then apply refractory and jitter.
+
+        Crossing of level ``l`` by pixel ``i`` between samples ``t0 < t1``:
+        the root of ``g(t) = log(I_i(t) + eps) - l`` in ``[t0, t1]``, where
+        ``I_i(t)`` is the renderer's closed-form pixel-area intensity
+        (``pixel_intensity``) and ``g(t0)``, ``g(t1)`` (from the samples) have
+        opposite signs; found by the Illinois variant of regula falsi to a
+        bracket of :data:`EXACT_TOL_S`, all crossings at once (one
+        ``pixel_intensity`` call per step). The refractory period and the
+        jitter then act on the exact times, per pixel in time order, as in the
+        linear path. Each crossing's time depends only on its own bracket, so
+        the result does not depend on how the run is chunked.
+        """
+        if not self._raw:
+            return
+        parts = self._raw
+        self._raw = []
+        p = self.params
+        pix, level, pol, ia, ib = (np.concatenate([c[k] for c in parts]) for k in (0, 1, 2, 5, 6))
+        sizes = [c[0].shape[0] for c in parts]
+        ta = np.repeat(np.array([c[3] for c in parts]), sizes)
+        tb = np.repeat(np.array([c[4] for c in parts]), sizes)
+        n = pix.shape[0]
+        fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
+        active = np.empty(n, dtype=np.bool_)
+        side = np.zeros(n, dtype=np.int8)
+        left = _illinois_start(ia, ib, p.log_eps, level, ta, tb, fa, fb, tc, active)
+        steps = 0
+        while left and steps < _EXACT_MAX_STEPS:
+            idx = np.flatnonzero(active)
+            ic = np.ascontiguousarray(self.renderer.pixel_intensity(pix[idx], tc[idx]), dtype=np.float64)
+            left = _illinois_step(idx, ic, p.log_eps, level, ta, tb, fa, fb, tc, side, EXACT_TOL_S, active)
+            steps += 1
+        self.n_root_steps += steps
+        keep = np.empty(n, dtype=np.bool_)
+        t_emit = np.empty(n)
+        k = _refractory_jitter(pix, tc, self.last_t, self.seq, p.refractory_us * 1e-6, p.jitter_us * 1e-6,
+                               self._jitter_seed, keep, t_emit)
+        if k:
+            self._pending.append((pix[keep], t_emit[keep], tc[keep], pol[keep], None))
 
     def _truth(self, pix, t_true, t0=None, t1=None, i0=None, i1=None) -> np.ndarray:
         x = pix % self.width
@@ -402,6 +494,7 @@ class EventConverter:
     def _flush(self, cut_us: int | None) -> tuple[np.ndarray, np.ndarray]:
         # pending parts: (pix, t_emit, t_true, p, truth) with truth None (geometric truth still to
         # compute), False (noise) or a TRUTH_DTYPE array
+        self._refine()
         if not self._pending:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
         parts = self._pending
@@ -424,7 +517,8 @@ class EventConverter:
                 start = stop
             if np.any(todo):
                 truth[todo] = self._truth(pix[todo], t_true[todo])
-        pix, _, pol, truth, t_us = self._finished_in_order(pix, t, t_true, pol, truth, cut_us)
+        pix, _, pol, truth, t_us, t = self._finished_in_order(pix, t, t_true, pol, truth, cut_us)
+        truth["t_ns"] = _ns(t)
         return self._events(pix, t_us, pol), truth
 
     def _finished_in_order(self, pix, t, t_true, pol, last, cut_us):
@@ -452,7 +546,7 @@ class EventConverter:
         sorted_key = key[order]
         if np.any(sorted_key[1:] == sorted_key[:-1]):
             order = np.lexsort((t, key))
-        return pix[order], t_true[order], pol[order], last[order], t_us[order]
+        return pix[order], t_true[order], pol[order], last[order], t_us[order], t[order]
 
     def _events(self, pix, t_us, pol):
         """Event array of flat pixel indices, int64 us times and polarities (already in order)."""
@@ -478,11 +572,13 @@ class EventConverter:
             if isinstance(c[4], np.ndarray):
                 noise[start:start + size] = c[4]
             start += size
-        pix, t_true, pol, noise, t_us = self._finished_in_order(pix, t, t_true, pol, noise, cut_us)
+        pix, t_true, pol, noise, t_us, t = self._finished_in_order(pix, t, t_true, pol, noise, cut_us)
         n = pix.shape[0]
         ev = self._events(pix, t_us, pol)
         if not np.any(noise):
-            return ev, self._truth(pix, t_true)
+            truth = self._truth(pix, t_true)
+            truth["t_ns"] = _ns(t)
+            return ev, truth
         signal = ~noise
         vx, vy, nx, ny = self.renderer.point_truth((pix[signal] % self.width).astype(np.float64),
                                                    (pix[signal] // self.width).astype(np.float64), t_true[signal])
@@ -493,6 +589,7 @@ class EventConverter:
             column[signal] = value
             truth[name] = column
         truth["is_signal"] = signal
+        truth["t_ns"] = _ns(t)
         return ev, truth
 
     def process(self, until_s: float) -> tuple[np.ndarray, np.ndarray]:

@@ -220,6 +220,7 @@ def _params(t: _Table) -> ConverterParams:
         max_step_px=t.number("max_step_px", d.max_step_px, lo=0, lo_open=True),
         min_step_s=t.number("min_step_s", d.min_step_s, lo=0, lo_open=True),
         sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted")),
+        crossing_times=t.string("crossing_times", d.crossing_times, choices=("auto", "exact", "linear")),
     )
     t.finish()
     return ConverterParams(**kw)

@@ -1,0 +1,264 @@
+"""numba kernels: exact pixel intensities at arbitrary times, and the root finder of the crossing times.
+
+The planar renderers draw whole images at the sample times; between two
+samples the converter needs a pixel's intensity at any instant to solve for
+the exact moment its log intensity crosses a threshold. These kernels
+evaluate the closed-form pixel-area intensity of one pixel at one time per
+entry (the same coverage formulas as :mod:`evedge.sim._coverage`: stripes by
+the projected-square CDF, polygons by clipping against the pixel square,
+disks by the circle/triangle decomposition), and :func:`_illinois_step`
+advances a bracketed regula falsi (Illinois variant) on
+``g(t) = log(I(t) + eps) - level`` for many crossings at once.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._coverage import _HALF_DIAG, _disk_box_area, _polygon_box_area, _stripe_dark_fraction
+from ._events import _half_normal
+
+
+@njit(cache=True)
+def _stripes_at(pix, t, width, layer_of_row, nx, ny, vx, vy, phase, period, duty, dark, light, background, out):
+    """Intensity of flat pixel ``pix[j]`` at time ``t[j]`` for a :class:`~evedge.sim.planar.StripesRenderer`.
+
+    Per layer ``k``: unit normal ``(nx, ny)[k]``, velocity ``(vx, vy)[k]``
+    and the stripe parameters; ``layer_of_row[y]`` is the layer of row ``y``
+    (-1: background). The arithmetic is that of
+    :func:`~evedge.sim._coverage._render_stripes` term by term, so at a sample
+    time the value is the rendered one.
+    """
+    for j in range(pix.shape[0]):
+        i = pix[j]
+        y = i // width
+        x = i - y * width
+        k = layer_of_row[y]
+        if k < 0:
+            out[j] = background
+            continue
+        offset = nx[k] * vx[k] * t[j] + ny[k] * vy[k] * t[j] + phase[k]
+        uc = nx[k] * x + ny[k] * y - offset
+        p = period[k]
+        r = uc - p * math.floor(uc / p)
+        h = 0.5 * (abs(nx[k]) + abs(ny[k]))
+        dp = duty[k] * p
+        if h < r < dp - h:
+            f = 1.0
+        elif dp + h < r < p - h:
+            f = 0.0
+        else:
+            f = _stripe_dark_fraction(uc, nx[k], ny[k], p, duty[k])
+        out[j] = light[k] + f * (dark[k] - light[k])
+
+
+@njit(cache=True)
+def _shapes_at(pix, cos_t, sin_t, shift_x, shift_y, width, center_x, center_y, qx, qy, starts, values,
+               poly_cx, poly_cy, poly_r, ccx, ccy, radii, circle_values, background, clip, out):
+    """Intensity of flat pixel ``pix[j]`` for a :class:`~evedge.sim.planar.ShapesRenderer` at one motion state per entry.
+
+    Entry ``j`` sees the object points moved by ``c + R(theta_j) (q - c) + s_j``
+    (``cos_t[j], sin_t[j], shift_x[j], shift_y[j]``; the arithmetic of
+    :func:`~evedge.sim._coverage._draw_shapes`). Polygon ``k`` has vertices
+    ``qx/qy[starts[k]:starts[k + 1]]`` and a bounding circle
+    ``(poly_cx, poly_cy, poly_r)[k]`` (object coordinates) used to skip it;
+    disks have centres ``ccx/ccy`` and ``radii``. Intensity
+    ``bg + sum_k coverage_k (value_k - bg)``, clipped to [0, 1] when ``clip``.
+    """
+    nmax = 0
+    for k in range(values.shape[0]):
+        nmax = max(nmax, starts[k + 1] - starts[k])
+    vx = np.empty(nmax)
+    vy = np.empty(nmax)
+    s = 6 * nmax + 16
+    ax = np.empty(s)
+    ay = np.empty(s)
+    bx = np.empty(s)
+    by = np.empty(s)
+    for j in range(pix.shape[0]):
+        i = pix[j]
+        y = i // width
+        x = i - y * width
+        c = cos_t[j]
+        sn = sin_t[j]
+        value = background
+        for k in range(values.shape[0]):
+            dx = poly_cx[k] - center_x
+            dy = poly_cy[k] - center_y
+            mx = center_x + c * dx - sn * dy + shift_x[j]
+            my = center_y + sn * dx + c * dy + shift_y[j]
+            if math.hypot(x - mx, y - my) > poly_r[k] + _HALF_DIAG:
+                continue
+            n = starts[k + 1] - starts[k]
+            for v in range(n):
+                dx = qx[starts[k] + v] - center_x
+                dy = qy[starts[k] + v] - center_y
+                vx[v] = center_x + c * dx - sn * dy + shift_x[j]
+                vy[v] = center_y + sn * dx + c * dy + shift_y[j]
+            cov = min(1.0, _polygon_box_area(vx, vy, n, x - 0.5, y - 0.5, x + 0.5, y + 0.5, ax, ay, bx, by))
+            if cov > 0.0:
+                value += cov * (values[k] - background)
+        for k in range(radii.shape[0]):
+            dx = ccx[k] - center_x
+            dy = ccy[k] - center_y
+            mx = center_x + c * dx - sn * dy + shift_x[j]
+            my = center_y + sn * dx + c * dy + shift_y[j]
+            r = radii[k]
+            d = math.sqrt((x - mx) ** 2 + (y - my) ** 2)
+            if d + _HALF_DIAG <= r:
+                cov = 1.0
+            elif d - _HALF_DIAG >= r:
+                cov = 0.0
+            else:
+                cov = min(1.0, max(0.0, _disk_box_area(mx, my, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)))
+            if cov > 0.0:
+                value += cov * (circle_values[k] - background)
+        if clip:
+            value = min(1.0, max(0.0, value))
+        out[j] = value
+
+
+@njit(cache=True)
+def _g(intensity, eps, level):
+    return math.log(intensity + eps) - level
+
+
+@njit(cache=True)
+def _illinois_start(ia, ib, eps, level, ta, tb, fa, fb, tc, active):
+    """Start the brackets: ``f = log(I + eps) - level`` at both ends; returns the number still active.
+
+    Where the exact function shows no sign change over ``[ta, tb]`` (a level
+    within rounding of an end value) the root is the end nearer in ``f``
+    (written to ``tc``; inactive).
+    """
+    m = 0
+    for j in range(ta.shape[0]):
+        fa[j] = _g(ia[j], eps, level[j])
+        fb[j] = _g(ib[j], eps, level[j])
+        if fa[j] == 0.0:
+            tc[j] = ta[j]
+            active[j] = False
+        elif fb[j] == 0.0 or (fa[j] > 0.0) == (fb[j] > 0.0):
+            tc[j] = ta[j] if abs(fa[j]) < abs(fb[j]) else tb[j]
+            active[j] = False
+        else:
+            tc[j] = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
+            active[j] = True
+            m += 1
+    return m
+
+
+@njit(cache=True)
+def _illinois_step(idx, ic, eps, level, ta, tb, fa, fb, tc, side, tol_s, active):
+    """One Illinois step for the active crossings ``idx``, given ``ic = I(tc[idx])``; returns the number left.
+
+    The bracket ``[ta, tb]`` keeps a sign change of ``f``; the new point
+    replaces the end of its sign, and when the same end is kept twice in a
+    row the other end's ``f`` is halved (the Illinois modification:
+    superlinear, never slower than bisection by much). A crossing is done
+    when its bracket is narrower than ``tol_s`` or ``f(tc) == 0``; its time
+    is ``tc``.
+    """
+    m = 0
+    for q in range(idx.shape[0]):
+        j = idx[q]
+        fc = _g(ic[q], eps, level[j])
+        if fc == 0.0:
+            active[j] = False
+            continue
+        if (fc > 0.0) == (fa[j] > 0.0):
+            ta[j] = tc[j]
+            fa[j] = fc
+            if side[j] == -1:
+                fb[j] *= 0.5
+            side[j] = -1
+        else:
+            tb[j] = tc[j]
+            fb[j] = fc
+            if side[j] == 1:
+                fa[j] *= 0.5
+            side[j] = 1
+        if tb[j] - ta[j] <= tol_s:
+            tc[j] = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
+            active[j] = False
+            continue
+        t = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
+        # keep strictly inside the bracket (rounding), else bisect
+        if not (ta[j] < t < tb[j]):
+            t = 0.5 * (ta[j] + tb[j])
+        tc[j] = t
+        m += 1
+    return m
+
+
+@njit(cache=True)
+def _crossing_levels(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, fill, cand, n_cand,
+                     out_pix, out_level, out_t, out_p):
+    """The threshold crossings of the candidates ``cand[:n_cand]`` between two samples; returns ``(n, n_moved)``.
+
+    As :func:`~evedge.sim._events._crossings` without the refractory period
+    and the jitter (applied later, on exact times): every crossing of
+    ``lref + cpos`` (ON) or ``lref - cneg`` (OFF) is written with its level
+    (the log intensity crossed) and its linearly interpolated time (a first
+    guess). With ``fill`` False nothing is written (count pass); with ``fill``
+    True the crossings are written and ``lref``, ``e_hi``, ``e_lo`` updated.
+    """
+    n = 0
+    n_moved = 0
+    span = t1 - t0
+    for j in range(n_cand):
+        i = cand[j]
+        l1 = math.log(i1[i] + eps)
+        l0 = math.log(i0[i] + eps)
+        lr = lref[i]
+        cp = cpos[i]
+        cn = cneg[i]
+        if l1 >= lr + cp:
+            on = True
+            step = cp
+        elif l1 <= lr - cn:
+            on = False
+            step = -cn
+        else:
+            continue
+        while (l1 >= lr + step) if on else (l1 <= lr + step):
+            lr += step
+            if fill:
+                out_pix[n] = i
+                out_level[n] = lr
+                out_t[n] = t0 + (lr - l0) / (l1 - l0) * span
+                out_p[n] = on
+            n += 1
+        n_moved += 1
+        if fill:
+            lref[i] = lr
+            e_hi[i] = math.exp(lr + cp)
+            e_lo[i] = math.exp(lr - cn)
+    return n, n_moved
+
+
+@njit(cache=True)
+def _refractory_jitter(pix, t, last_t, seq, refractory_s, jitter_s, jitter_seed, keep, t_emit):
+    """Apply the refractory period and the latency jitter to crossings in generation order; returns the number kept.
+
+    Crossing ``j`` of pixel ``pix[j]`` at exact time ``t[j]`` is kept when
+    ``t[j] - last_t[pix[j]] >= refractory_s`` (``last_t``: the pixel's last
+    kept crossing, updated); a kept one is emitted at
+    ``t + jitter_s |N(0, 1)|`` hashed from (pixel, per-pixel event count
+    ``seq``, updated), as :func:`~evedge.sim._events._crossings` does.
+    """
+    n = 0
+    for j in range(pix.shape[0]):
+        i = pix[j]
+        if t[j] - last_t[i] >= refractory_s:
+            keep[j] = True
+            t_emit[j] = t[j] + jitter_s * _half_normal(jitter_seed, i, seq[i]) if jitter_s > 0 else t[j]
+            seq[i] += 1
+            last_t[i] = t[j]
+            n += 1
+        else:
+            keep[j] = False
+    return n
