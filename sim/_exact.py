@@ -8,7 +8,7 @@ entry (the same coverage formulas as :mod:`evedge.sim._coverage`: stripes by
 the projected-square CDF, polygons by clipping against the pixel square,
 disks by the circle/triangle decomposition), and :func:`_illinois_step`
 advances a bracketed regula falsi (Illinois variant) on
-``g(t) = log(I(t) + eps) - level`` for many crossings at once.
+``f(t) = I(t) - (exp(level) - eps)`` for many crossings at once.
 """
 
 from __future__ import annotations
@@ -122,13 +122,8 @@ def _shapes_at(pix, cos_t, sin_t, shift_x, shift_y, width, center_x, center_y, q
 
 
 @njit(cache=True)
-def _g(intensity, eps, level):
-    return math.log(intensity + eps) - level
-
-
-@njit(cache=True)
-def _illinois_start(ia, ib, eps, level, ta, tb, fa, fb, tc, active):
-    """Start the brackets: ``f = log(I + eps) - level`` at both ends; returns the number still active.
+def _illinois_start(ia, ib, target, ta, tb, fa, fb, tc, active):
+    """Start the brackets: ``f = I - target`` at both ends; returns the number still active.
 
     Where the exact function shows no sign change over ``[ta, tb]`` (a level
     within rounding of an end value) the root is the end nearer in ``f``
@@ -136,8 +131,8 @@ def _illinois_start(ia, ib, eps, level, ta, tb, fa, fb, tc, active):
     """
     m = 0
     for j in range(ta.shape[0]):
-        fa[j] = _g(ia[j], eps, level[j])
-        fb[j] = _g(ib[j], eps, level[j])
+        fa[j] = ia[j] - target[j]
+        fb[j] = ib[j] - target[j]
         if fa[j] == 0.0:
             tc[j] = ta[j]
             active[j] = False
@@ -152,21 +147,23 @@ def _illinois_start(ia, ib, eps, level, ta, tb, fa, fb, tc, active):
 
 
 @njit(cache=True)
-def _illinois_step(idx, ic, eps, level, ta, tb, fa, fb, tc, side, tol_s, active):
+def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, tol_s, tol_i, active):
     """One Illinois step for the active crossings ``idx``, given ``ic = I(tc[idx])``; returns the number left.
 
     The bracket ``[ta, tb]`` keeps a sign change of ``f``; the new point
     replaces the end of its sign, and when the same end is kept twice in a
     row the other end's ``f`` is halved (the Illinois modification:
-    superlinear, never slower than bisection by much). A crossing is done
-    when its bracket is narrower than ``tol_s`` or ``f(tc) == 0``; its time
-    is ``tc``.
+    superlinear, never slower than bisection by much). The function is the
+    intensity, not its log (the same root: the log is monotone), because it
+    is linear in time wherever an edge crosses a pixel along a row, where
+    regula falsi is exact in one step. A crossing is done when its bracket is
+    narrower than ``tol_s`` or ``|f(tc)| <= tol_i``; its time is ``tc``.
     """
     m = 0
     for q in range(idx.shape[0]):
         j = idx[q]
-        fc = _g(ic[q], eps, level[j])
-        if fc == 0.0:
+        fc = ic[q] - target[j]
+        if abs(fc) <= tol_i:
             active[j] = False
             continue
         if (fc > 0.0) == (fa[j] > 0.0):

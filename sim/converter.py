@@ -52,6 +52,8 @@ _NOISE_BLOCK_S = 0.01
 CROSSING_TIMES = ("auto", "exact", "linear")
 #: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
 EXACT_TOL_S = 1e-11
+#: ... or when the intensity is this close to the level's (a time error <= 1e-14 / |dI/dt| s).
+EXACT_TOL_I = 1e-14
 #: ... or after this many Illinois steps (a safeguard; about 10 are needed).
 _EXACT_MAX_STEPS = 100
 
@@ -419,9 +421,9 @@ class EventConverter:
         """Exact mode: solve every pending crossing for its instant, then apply refractory and jitter.
 
         Crossing of level ``l`` by pixel ``i`` between samples ``t0 < t1``:
-        the root of ``g(t) = log(I_i(t) + eps) - l`` in ``[t0, t1]``, where
+        the root of ``f(t) = I_i(t) - (exp(l) - eps)`` in ``[t0, t1]``, where
         ``I_i(t)`` is the renderer's closed-form pixel-area intensity
-        (``pixel_intensity``) and ``g(t0)``, ``g(t1)`` (from the samples) have
+        (``pixel_intensity``) and ``f(t0)``, ``f(t1)`` (from the samples) have
         opposite signs; found by the Illinois variant of regula falsi to a
         bracket of :data:`EXACT_TOL_S`, all crossings at once (one
         ``pixel_intensity`` call per step). The refractory period and the
@@ -442,12 +444,13 @@ class EventConverter:
         fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
         active = np.empty(n, dtype=np.bool_)
         side = np.zeros(n, dtype=np.int8)
-        left = _illinois_start(ia, ib, p.log_eps, level, ta, tb, fa, fb, tc, active)
+        target = np.exp(level) - p.log_eps  # the intensity of the level: the same root, found faster
+        left = _illinois_start(ia, ib, target, ta, tb, fa, fb, tc, active)
         steps = 0
         while left and steps < _EXACT_MAX_STEPS:
             idx = np.flatnonzero(active)
             ic = np.ascontiguousarray(self.renderer.pixel_intensity(pix[idx], tc[idx]), dtype=np.float64)
-            left = _illinois_step(idx, ic, p.log_eps, level, ta, tb, fa, fb, tc, side, EXACT_TOL_S, active)
+            left = _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, EXACT_TOL_S, EXACT_TOL_I, active)
             steps += 1
         self.n_root_steps += steps
         keep = np.empty(n, dtype=np.bool_)
