@@ -203,6 +203,9 @@ class EventConverter:
         self.height = int(renderer.height)
         self._geometric = isinstance(renderer, GeometricTruth)
         mode = params.sampling
+        # renderers with fixed sample times (frames input): sample exactly there, nothing to verify
+        self._fixed = callable(getattr(renderer, "next_sample_s", None))
+        self._has_flow = bool(getattr(renderer, "has_flow", True))
         if mode == "auto":
             self.verified = bool(getattr(renderer, "continuous_in_time", True))
         else:
@@ -321,6 +324,18 @@ class EventConverter:
 
     def _step(self) -> None:
         p = self.params
+        if self._fixed:
+            t1 = min(float(self.renderer.next_sample_s(self.t)), self.duration_s)
+            if not t1 > self.t:
+                raise ValueError(f"renderer {type(self.renderer).__name__}.next_sample_s({self.t}) returned {t1}, "
+                                 "not a later time")
+            i1 = self._render(t1)
+            n_cand, _ = self._scan(self._i, i1, self._full_span, 1)
+            self._interval(self.t, t1, self._i, i1, n_cand)
+            self.t = t1
+            self._i = i1
+            self.n_samples += 1
+            return
         limit = p.lambda_ * self._c_min
         dt = self._propose()
         if not self.verified:
@@ -382,7 +397,7 @@ class EventConverter:
             _crossings(*args, True, self._cand, n_cand, pix, t_true, t_emit, pol)
         if n:
             # geometric truth is computed per flush, in one vectorised call (cheaper than per sample)
-            truth = None if self._geometric else self._truth(pix, t_true, t0, t1, i0, i1)
+            truth = None if self._geometric or not self._has_flow else self._truth(pix, t_true, t0, t1, i0, i1)
             self._pending.append((pix, t_emit, t_true, pol, truth))
         elif not self.exact:
             self._flow = None
@@ -463,6 +478,11 @@ class EventConverter:
     def _truth(self, pix, t_true, t0=None, t1=None, i0=None, i1=None) -> np.ndarray:
         x = pix % self.width
         y = pix // self.width
+        if not self._has_flow:
+            # frames input: the events are signal, their flow and normal unknown
+            out = empty_truth(pix.shape[0])
+            out["is_signal"] = True
+            return out
         out = np.empty(pix.shape[0], dtype=TRUTH_DTYPE)
         if self._geometric:
             vx, vy, nx, ny = self.renderer.point_truth(x.astype(np.float64), y.astype(np.float64), t_true)
