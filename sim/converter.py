@@ -43,7 +43,7 @@ import numpy as np
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
 from ._exact import _crossing_levels, _illinois_start, _illinois_step, _refractory_jitter
 from .renderer import GeometricTruth, Renderer
-from .truth import TRUTH_DTYPE, empty_truth, gradient_direction, lifetime_us
+from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
 #: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
@@ -495,10 +495,9 @@ class EventConverter:
             w = ((t_true - t0) / (t1 - t0)) if t1 > t0 else np.zeros_like(t_true)
             vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
             vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
-            l0 = np.log(i0.reshape(self.height, self.width) + eps)
-            l1 = np.log(i1.reshape(self.height, self.width) + eps)
-            g0x, g0y = gradient_direction(l0, x, y)
-            g1x, g1y = gradient_direction(l1, x, y)
+            # the log only where the central differences need it (not the full frames)
+            g0x, g0y = log_gradient_direction_at(i0, eps, x, y, self.width, self.height)
+            g1x, g1y = log_gradient_direction_at(i1, eps, x, y, self.width, self.height)
             gx = (1 - w) * np.nan_to_num(g0x) + w * np.nan_to_num(g1x)
             gy = (1 - w) * np.nan_to_num(g0y) + w * np.nan_to_num(g1y)
             norm = np.hypot(gx, gy)

@@ -76,8 +76,9 @@ def _grey(img: np.ndarray, source: str) -> np.ndarray:
     if img.dtype == np.uint16:
         return img.astype(np.float64) / 65535.0
     if img.dtype.kind == "f":
-        out = img.astype(np.float64)
-        if not np.all(np.isfinite(out)):
+        out = np.ascontiguousarray(img, dtype=np.float64)  # no copy for float64 frames
+        # one reduction instead of an isfinite mask; the mask only to confirm (a sum of huge values may overflow)
+        if not math.isfinite(float(out.sum())) and not np.all(np.isfinite(out)):
             raise FramesError(f"{source}: non-finite pixel values")
         return out
     raise FramesError(f"{source}: unsupported pixel type {img.dtype}")
@@ -359,7 +360,7 @@ class FramesRenderer:
         self.duration_s = float(self._t[-1])
         self._k = -1  # frame interval [k, k + 1] held
         self._pair = None
-        self._sub = {}
+        self._next = None  # (time, k, j) of the last next_sample_s answer
 
     # sample times: frame k at _t[k], sub-sample j of interval k at _t[k] + j / upsample * (_t[k+1] - _t[k])
     def _sample_time(self, k, j):
@@ -378,16 +379,19 @@ class FramesRenderer:
         return k, None
 
     def next_sample_s(self, t_s: float) -> float:
-        """The first sample time after ``t_s``."""
+        """The first sample time after ``t_s`` (remembered, so that :meth:`intensity` finds it without a search)."""
         k = int(np.searchsorted(self._t, t_s, side="right")) - 1
         if k >= len(self._t) - 1:
+            self._next = (self.duration_s, len(self._t) - 1, 0)
             return self.duration_s
         k = max(k, 0)
         for j in range(1, self.upsample):
             tj = self._sample_time(k, j)
             if tj > t_s:
+                self._next = (tj, k, j)
                 return tj
-        return float(self._t[k + 1])
+        self._next = (float(self._t[k + 1]), k + 1, 0)
+        return self._next[0]
 
     def _frame(self, k):
         """Frame ``k`` as log intensity, or as linear intensity when no sub-frame needs the log (faster)."""
@@ -444,7 +448,8 @@ class FramesRenderer:
 
     def intensity(self, t_s: float) -> np.ndarray:
         """Linear intensity at sample time ``t_s`` (a frame or sub-frame time; others are refused)."""
-        k, j = self._locate(float(t_s))
+        t_s = float(t_s)
+        k, j = self._next[1:] if self._next is not None and self._next[0] == t_s else self._locate(t_s)
         if j is None:
             raise ValueError(f"FramesRenderer.intensity: {t_s!r} s is not a sample time of {self.source.name}")
         if k == len(self._t) - 1:

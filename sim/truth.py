@@ -64,3 +64,23 @@ def gradient_direction(log_image: np.ndarray, x: np.ndarray, y: np.ndarray) -> t
     norm = np.hypot(gx, gy)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(norm > 0, gx / norm, np.nan), np.where(norm > 0, gy / norm, np.nan)
+
+
+def log_gradient_direction_at(image_flat: np.ndarray, eps: float, x: np.ndarray, y: np.ndarray,
+                              width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`gradient_direction` of ``log(image + eps)`` at pixels ``(x, y)``, taking only the logs it needs.
+
+    ``image_flat`` is the row-major linear image. The same arithmetic as
+    ``gradient_direction(np.log(image + eps), x, y)`` element by element (the
+    same bytes), without the full-frame logarithm.
+    """
+    xp = np.minimum(x + 1, width - 1)
+    xm = np.maximum(x - 1, 0)
+    yp = np.minimum(y + 1, height - 1)
+    ym = np.maximum(y - 1, 0)
+    at = lambda yy, xx: np.log(image_flat[yy * width + xx] + eps)  # noqa: E731
+    gx = (at(y, xp) - at(y, xm)) / np.maximum(xp - xm, 1)
+    gy = (at(yp, x) - at(ym, x)) / np.maximum(yp - ym, 1)
+    norm = np.hypot(gx, gy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm > 0, gx / norm, np.nan), np.where(norm > 0, gy / norm, np.nan)

@@ -113,3 +113,17 @@ def test_motion_scalar_and_array_state_agree():
     for t in np.linspace(0.0, 2.0, 41):
         vx, vy = m.flow_at(xx, yy, t)
         assert np.hypot(vx, vy).max() <= m.max_speed_px_s(t, t, 30, 20) + 1e-9
+
+
+def test_log_gradient_direction_at_is_the_full_frame_computation():
+    from evedge.sim.truth import gradient_direction, log_gradient_direction_at
+
+    rng = np.random.default_rng(1)
+    img = rng.uniform(0, 1, (9, 13))
+    img[4, :] = 0.5  # flat rows and columns: zero gradients (NaN directions) too
+    img[:, 6] = 0.5
+    y, x = np.divmod(np.arange(img.size), 13)
+    want = gradient_direction(np.log(img + 1e-3), x, y)
+    got = log_gradient_direction_at(img.ravel(), 1e-3, x, y, 13, 9)
+    for a, b in zip(got, want):
+        assert a.tobytes() == b.tobytes()
