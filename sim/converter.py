@@ -42,12 +42,22 @@ import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
 from ._exact import _crossing_levels, _illinois_start, _illinois_step, _refractory_jitter
+from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
 #: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
 _NOISE_BLOCK_S = 0.01
+#: Realistic sensor-effect settings (``ConverterParams(**SENSOR_EFFECT_PRESETS[name])``; scenes:
+#: ``[events] effects = name``). ``v2e_noisy``: v2e's ``--dvs_params noisy`` (thresholds 0.2, mismatch
+#: 0.05, photoreceptor cutoff 30 Hz, leak 0.1 Hz with v2e's default 10 % spread, shot noise 5 Hz) with
+#: noise that resets the pixel; ``v2e_clean``: its ``clean`` (thresholds 0.2, mismatch 0.02, no effects).
+SENSOR_EFFECT_PRESETS = {
+    "v2e_noisy": dict(contrast_pos=0.2, contrast_neg=0.2, contrast_sigma=0.05, lowpass_cutoff_hz=30.0,
+                      leak_rate_hz=0.1, leak_rate_sigma=0.1, shot_noise_rate_hz=5.0, noise_resets=True),
+    "v2e_clean": dict(contrast_pos=0.2, contrast_neg=0.2, contrast_sigma=0.02),
+}
 #: Values of ``ConverterParams.crossing_times``.
 CROSSING_TIMES = ("auto", "exact", "linear")
 #: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
@@ -96,10 +106,34 @@ class ConverterParams:
         ``"predicted"`` (see the module docstring).
     crossing_times : str
         ``"auto"`` (exact when the renderer offers ``pixel_intensity`` and
-        geometric truth, as the analytic planar renderers do; linear
-        otherwise), ``"exact"`` (solve the pixel's closed-form intensity for
-        each crossing instant, see the module docstring) or ``"linear"``
-        (ESIM's interpolation of ``L`` between the samples).
+        geometric truth, as the analytic planar renderers do, and no sensor
+        effect below is on; linear otherwise), ``"exact"`` (solve the pixel's
+        closed-form intensity for each crossing instant, see the module
+        docstring) or ``"linear"`` (ESIM's interpolation of ``L`` between the
+        samples).
+    lowpass_cutoff_hz : float
+        Photoreceptor bandwidth at full intensity (0: off). The events fire
+        on ``L_lp``, ``tau(I) dL_lp/dt = L - L_lp`` with the v2e
+        intensity-dependent cutoff ``f(I) = cutoff (I + 20/255) / (1 + 20/255)``,
+        ``tau = 1 / (2 pi f)`` (see :mod:`evedge.sim._sensor`); steps are then
+        at most ``0.1 / (2 pi cutoff)`` (scenes; frames are sampled as given).
+    leak_rate_hz : float
+        Leak events (0: off): the reference level of pixel ``i`` drifts down
+        by ``r_i C+_i`` per second (junction leakage, v2e), so a static
+        pixel fires ON events at rate ``r_i``.
+    leak_rate_sigma : float
+        Relative per-pixel spread of the leak rate: ``r_i = r max(0, 1 + sigma N(0, 1))``
+        drawn once per pixel from the seed (v2e's ``leak_jitter_fraction``).
+    shot_noise_rate_hz : float
+        Shot noise (0: off): Poisson events, ON or OFF with equal chance, at
+        ``R(I) = rate (1 - 0.75 I)`` per pixel (v2e: the dark rate, four times
+        less at full intensity); noise in the truth. They reset the pixel and
+        obey the refractory period (as v2e's shot noise moves the reference).
+    noise_resets : bool
+        Background-activity and shot-noise events reset the pixel (its
+        reference level becomes the present ``L``) and obey the refractory
+        period (arrivals inside it are dropped) instead of being independent
+        of the pixel (the default, today's bytes).
     """
 
     contrast_pos: float = 0.2
@@ -116,6 +150,11 @@ class ConverterParams:
     min_step_s: float = 1e-6
     sampling: str = "auto"
     crossing_times: str = "auto"
+    lowpass_cutoff_hz: float = 0.0
+    leak_rate_hz: float = 0.0
+    leak_rate_sigma: float = 0.0
+    shot_noise_rate_hz: float = 0.0
+    noise_resets: bool = False
 
     def __post_init__(self) -> None:
         if self.sampling not in ("auto", "verified", "predicted"):
@@ -124,8 +163,11 @@ class ConverterParams:
         if self.crossing_times not in CROSSING_TIMES:
             raise ValueError(f"ConverterParams.crossing_times must be one of {list(CROSSING_TIMES)}, "
                              f"got {self.crossing_times!r}")
+        if not isinstance(self.noise_resets, (bool, np.bool_)):
+            raise ValueError(f"ConverterParams.noise_resets must be True or False, got {self.noise_resets!r}")
+        object.__setattr__(self, "noise_resets", bool(self.noise_resets))
         for name, value in asdict(self).items():
-            if name in ("sampling", "crossing_times"):
+            if name in ("sampling", "crossing_times", "noise_resets"):
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ConverterParams.{name} must be a finite number, got {value!r}")
@@ -135,13 +177,17 @@ class ConverterParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"ConverterParams.{name} must be > 0, got {getattr(self, name)}")
-        for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us"):
+        for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us", "lowpass_cutoff_hz",
+                     "leak_rate_hz", "leak_rate_sigma", "shot_noise_rate_hz"):
             if getattr(self, name) < 0:
                 raise ValueError(f"ConverterParams.{name} must be >= 0, got {getattr(self, name)}")
         # upper bounds: beyond them the output is meaningless or the simulation never ends
         for name, hi, why in (
             ("lambda_", 1.0, "a step may not cross more than one threshold"),
             ("noise_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("shot_noise_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("leak_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("lowpass_cutoff_hz", 1e9, "steps of a fraction of a nanosecond"),
             ("jitter_us", 1e12, "jittered times must stay inside int64 microseconds"),
         ):
             if getattr(self, name) > hi:
@@ -156,8 +202,11 @@ def _ns(t_s: np.ndarray) -> np.ndarray:
 def _seeds(seed: int):
     ss = np.random.SeedSequence(seed)
     thr, jit, ntime, npol = ss.spawn(4)
+    # spawned after the first four, so these do not change the others' streams
+    leak, stime, spol, sthin = ss.spawn(4)
     as_u64 = lambda s: np.uint64(s.generate_state(1, dtype=np.uint64)[0])  # noqa: E731
-    return np.random.default_rng(thr), as_u64(jit), as_u64(ntime), as_u64(npol)
+    return (np.random.default_rng(thr), as_u64(jit), as_u64(ntime), as_u64(npol),
+            (np.random.default_rng(leak), as_u64(stime), as_u64(spol), as_u64(sthin)))
 
 
 class EventConverter:
@@ -214,14 +263,21 @@ class EventConverter:
         if params.crossing_times == "exact" and not can_exact:
             raise ValueError(f"ConverterParams.crossing_times='exact' needs a renderer with pixel_intensity and "
                              f"point_truth; {type(renderer).__name__} has not both (use 'linear' or 'auto')")
-        self.exact = can_exact and params.crossing_times != "linear"
+        self.sensor_effects = (params.lowpass_cutoff_hz > 0 or params.leak_rate_hz > 0
+                               or params.shot_noise_rate_hz > 0 or params.noise_resets)
+        if params.crossing_times == "exact" and self.sensor_effects:
+            raise ValueError("ConverterParams.crossing_times='exact' is not available with the sensor effects "
+                             "(lowpass_cutoff_hz, leak_rate_hz, shot_noise_rate_hz, noise_resets): they act on "
+                             "the sampled log intensity; use 'linear' or 'auto'")
+        self.exact = can_exact and params.crossing_times != "linear" and not self.sensor_effects
         self.reset()
 
     def reset(self) -> None:
         """Back to ``t = 0`` with fresh state (same seed: same output)."""
         p = self.params
         npix = self.width * self.height
-        rng, self._jitter_seed, self._noise_time_seed, self._noise_pol_seed = _seeds(self.seed)
+        rng, self._jitter_seed, self._noise_time_seed, self._noise_pol_seed, extra = _seeds(self.seed)
+        leak_rng, self._shot_time_seed, self._shot_pol_seed, self._shot_thin_seed = extra
         cp = np.full(npix, p.contrast_pos)
         cn = np.full(npix, p.contrast_neg)
         if p.contrast_sigma > 0:
@@ -259,6 +315,7 @@ class EventConverter:
         if p.noise_rate_hz > 0:
             _noise_first_arrivals(p.noise_rate_hz, self._noise_time_seed, self.noise_next)
         self._dt = min(1.0 / p.min_rate_hz, 1e-4)
+        self._reset_sensor(leak_rng)
         self._pending: list[dict[str, np.ndarray]] = []
         self._raw: list[tuple] = []  # exact mode: crossings awaiting their exact times
         self.n_samples = 0
@@ -320,6 +377,8 @@ class EventConverter:
         vmax = float(self.renderer.max_speed_px_s(self.t, min(self.duration_s, self.t + 1.0 / p.min_rate_hz)))
         if vmax > 0:
             dt = min(dt, p.max_step_px / vmax)
+        if p.lowpass_cutoff_hz > 0:
+            dt = min(dt, 0.1 / (2.0 * math.pi * p.lowpass_cutoff_hz))  # a tenth of the shortest time constant
         return max(dt, p.min_step_s)
 
     def _step(self) -> None:
@@ -381,6 +440,9 @@ class EventConverter:
         p = self.params
         args = self._kernel_args(t0, t1, i0, i1)
         empty_i, empty_f, empty_b = self._empty
+        if self.sensor_effects:
+            self._sensor_step(t0, t1, i0, i1)
+            return
         n = moved = 0
         if self.exact:
             if n_cand:
@@ -402,18 +464,106 @@ class EventConverter:
         elif not self.exact:
             self._flow = None
         if p.noise_rate_hz > 0 and t1 > self._noise_until:
-            # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
-            # block grid does not depend on the samples, so neither does the noise)
-            self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
-            nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
-                     self.noise_count)
-            m = _noise(*nargs, False, empty_i, empty_f, empty_b)
-            if m:
-                pix = np.empty(m, dtype=np.int64)
-                tn = np.empty(m)
-                pol = np.empty(m, dtype=np.bool_)
-                _noise(*nargs, True, pix, tn, pol)
-                self._pending.append((pix, tn, tn, pol, False))  # False: noise, no truth
+            self._noise_block(t1)
+
+    def _noise_block(self, t1: float) -> None:
+        """Independent background activity up to the end of the noise block holding ``t1``."""
+        p = self.params
+        empty_i, empty_f, empty_b = self._empty
+        # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
+        # block grid does not depend on the samples, so neither does the noise)
+        self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
+        nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
+                 self.noise_count)
+        m = _noise(*nargs, False, empty_i, empty_f, empty_b)
+        if m:
+            pix = np.empty(m, dtype=np.int64)
+            tn = np.empty(m)
+            pol = np.empty(m, dtype=np.bool_)
+            _noise(*nargs, True, pix, tn, pol)
+            self._pending.append((pix, tn, tn, pol, False))  # False: noise, no truth
+
+    # ------------------------------------------------------------------ sensor effects
+    def _reset_sensor(self, leak_rng) -> None:
+        """State of the sensor effects: the effective log intensity, leak slopes, shot-noise arrivals."""
+        p = self.params
+        if not self.sensor_effects:
+            return
+        npix = self.width * self.height
+        self._l_lp = np.log(self._i + p.log_eps)  # low-passed L (== L at t = 0)
+        self._l_eff = self._l_lp.copy()  # what the events fire on: L_lp plus the leak drift
+        rate = np.full(npix, p.leak_rate_hz)
+        if p.leak_rate_hz > 0 and p.leak_rate_sigma > 0:
+            rate = p.leak_rate_hz * np.maximum(0.0, 1.0 + p.leak_rate_sigma * leak_rng.standard_normal(npix))
+        self._leak_slope = rate * self.cpos  # log units per second
+        self.shot_next = np.empty(npix)
+        self.shot_count = np.zeros(npix, dtype=np.int64)
+        if p.shot_noise_rate_hz > 0:
+            _noise_first_arrivals(p.shot_noise_rate_hz, self._shot_time_seed, self.shot_next)
+        if p.noise_resets:
+            self._noise_until = math.inf  # resetting noise is drawn per step, not in blocks
+
+    def _arrivals(self, t1, rate_hz, time_seed, pol_seed, next_t, count):
+        """Poisson arrivals before ``t1`` (:func:`_noise`), as (pix, t, pol)."""
+        e = np.empty(0)
+        nargs = (t1, rate_hz, time_seed, pol_seed, next_t, count)
+        m = _noise(*nargs, False, self._empty[0], e, self._empty[2])
+        pix = np.empty(m, dtype=np.int64)
+        tn = np.empty(m)
+        pol = np.empty(m, dtype=np.bool_)
+        if m:
+            _noise(*nargs, True, pix, tn, pol)
+        return pix, tn, pol
+
+    def _sensor_step(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray) -> None:
+        """One step with the sensor effects (see :class:`ConverterParams` and :mod:`evedge.sim._sensor`).
+
+        Low-pass, then the leak drift (added to ``L``: the same as lowering the
+        reference), then the crossings and the noise arrivals of the step in
+        time order per pixel (:func:`_sensor_interval`).
+        """
+        p = self.params
+        l_new = np.log(i1 + p.log_eps)
+        if p.lowpass_cutoff_hz > 0:
+            _lowpass(self._l_lp, l_new, i1, t1 - t0, p.lowpass_cutoff_hz)
+            l_new = self._l_lp
+        l1 = l_new + self._leak_slope * t1 if p.leak_rate_hz > 0 else l_new.copy()
+        parts = []
+        if p.noise_resets and p.noise_rate_hz > 0:
+            parts.append(self._arrivals(t1, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed,
+                                        self.noise_next, self.noise_count))
+        if p.shot_noise_rate_hz > 0:
+            pix, tn, pol = self._arrivals(t1, p.shot_noise_rate_hz, self._shot_time_seed, self._shot_pol_seed,
+                                          self.shot_next, self.shot_count)
+            ok = np.empty(pix.shape[0], dtype=np.bool_)
+            _thin_shot(pix, tn, pol, pix.shape[0], i1, self._shot_thin_seed, ok)
+            parts.append((pix[ok], tn[ok], pol[ok]))
+        if parts:
+            npix_, nt, npol = (np.concatenate([c[k] for c in parts]) for k in range(3))
+            order = np.lexsort((nt, npix_))
+            npix_, nt, npol = npix_[order], nt[order], npol[order]
+        else:
+            npix_, nt, npol = self._empty[0], np.empty(0), self._empty[2]
+        args = (self._l_eff, l1, t0, t1, self.lref, self.cpos, self.cneg, self.last_t, p.refractory_us * 1e-6,
+                self.seq, p.jitter_us * 1e-6, self._jitter_seed, npix_, nt, npol, npix_.shape[0])
+        e = np.empty(0)
+        n = _sensor_interval(*args, False, self._empty[0], e, e, self._empty[2], self._empty[2])
+        out = (np.empty(n, dtype=np.int64), np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_),
+               np.empty(n, dtype=np.bool_))
+        _sensor_interval(*args, True, *out)
+        self._l_eff = l1
+        if n:
+            pix, t_true, t_emit, pol, noise = out
+            if self._geometric:
+                last = noise if np.any(noise) else None  # geometric truth: computed at the flush
+            else:
+                last = empty_truth(n)
+                signal = ~noise
+                if np.any(signal):
+                    last[signal] = self._truth(pix[signal], t_true[signal], t0, t1, i0, i1)
+            self._pending.append((pix, t_emit, t_true, pol, last))
+        if p.noise_rate_hz > 0 and not p.noise_resets and t1 > self._noise_until:
+            self._noise_block(t1)
 
     def _raw_crossings(self, t0, t1, i0, i1, n_cand) -> None:
         """Exact mode: the crossings of one interval with their levels, kept until :meth:`_refine`."""

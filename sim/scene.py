@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -95,6 +95,12 @@ class _Table:
         if choices is not None and v not in choices:
             self.fail(name, f"must be one of {list(choices)}, got {v!r}")
         return v
+
+    def boolean(self, name: str, default=None) -> bool:
+        present, v = self._lookup(name, default)
+        if present and not isinstance(v, bool):
+            self.fail(name, f"expected true or false, got {v!r}")
+        return bool(v)
 
     def vector(self, name: str, length: int, default=None):
         present, v = self._lookup(name, default)
@@ -206,6 +212,14 @@ def _params(t: _Table) -> ConverterParams:
         if name not in SENSOR_MODELS:
             t.fail("preset", f"unknown preset {name!r}; known: {sorted(SENSOR_MODELS)}")
         d = ConverterParams(**SENSOR_MODELS[name].event_params)
+    if t.has("effects"):
+        # a realistic sensor-effect preset (v2e's); explicit keys below still override it
+        from .converter import SENSOR_EFFECT_PRESETS
+
+        name = t.string("effects", "")
+        if name not in SENSOR_EFFECT_PRESETS:
+            t.fail("effects", f"unknown effects preset {name!r}; known: {sorted(SENSOR_EFFECT_PRESETS)}")
+        d = replace(d, **SENSOR_EFFECT_PRESETS[name])
     kw = dict(
         contrast_pos=t.number("contrast_pos", d.contrast_pos, lo=0, lo_open=True),
         contrast_neg=t.number("contrast_neg", d.contrast_neg, lo=0, lo_open=True),
@@ -221,6 +235,11 @@ def _params(t: _Table) -> ConverterParams:
         min_step_s=t.number("min_step_s", d.min_step_s, lo=0, lo_open=True),
         sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted")),
         crossing_times=t.string("crossing_times", d.crossing_times, choices=("auto", "exact", "linear")),
+        lowpass_cutoff_hz=t.number("lowpass_cutoff_hz", d.lowpass_cutoff_hz, lo=0, hi=1e9),
+        leak_rate_hz=t.number("leak_rate_hz", d.leak_rate_hz, lo=0, hi=1e6),
+        leak_rate_sigma=t.number("leak_rate_sigma", d.leak_rate_sigma, lo=0),
+        shot_noise_rate_hz=t.number("shot_noise_rate_hz", d.shot_noise_rate_hz, lo=0, hi=1e6),
+        noise_resets=t.boolean("noise_resets", d.noise_resets),
     )
     t.finish()
     return ConverterParams(**kw)
