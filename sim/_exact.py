@@ -56,13 +56,26 @@ def _stripes_at(pix, t, width, layer_of_row, nx, ny, vx, vy, phase, period, duty
 
 
 @njit(cache=True)
-def _shapes_at(pix, cos_t, sin_t, shift_x, shift_y, width, center_x, center_y, qx, qy, starts, values,
-               poly_cx, poly_cy, poly_r, ccx, ccy, radii, circle_values, background, clip, out):
-    """Intensity of flat pixel ``pix[j]`` for a :class:`~evedge.sim.planar.ShapesRenderer` at one motion state per entry.
+def _motion_state(m, t):
+    """``theta, sx, sy`` of :meth:`~evedge.sim.motion.PlanarMotion._state_scalar` at ``t`` (same formulas, same order).
 
-    Entry ``j`` sees the object points moved by ``c + R(theta_j) (q - c) + s_j``
-    (``cos_t[j], sin_t[j], shift_x[j], shift_y[j]``; the arithmetic of
-    :func:`~evedge.sim._coverage._draw_shapes`). Polygon ``k`` has vertices
+    ``m`` holds ``angle, angular_velocity, angular_acceleration, angle_amplitude,
+    frequency, chirp, v0x, v0y, ax, ay, amx, amy``.
+    """
+    ph = 2.0 * math.pi * (m[4] * t + 0.5 * m[5] * t * t)
+    sph = math.sin(ph)
+    theta = m[0] + m[1] * t + 0.5 * m[2] * t * t + m[3] * sph
+    return theta, m[6] * t + 0.5 * m[8] * t * t + m[10] * sph, m[7] * t + 0.5 * m[9] * t * t + m[11] * sph
+
+
+@njit(cache=True)
+def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values,
+               poly_cx, poly_cy, poly_r, ccx, ccy, radii, circle_values, background, clip, out):
+    """Intensity of flat pixel ``pix[j]`` at time ``t[j]`` for a :class:`~evedge.sim.planar.ShapesRenderer`.
+
+    Entry ``j`` sees the object points moved by ``c + R(theta) (q - c) + s``
+    with the motion state at ``t[j]`` (:func:`_motion_state`; the arithmetic
+    of :func:`~evedge.sim._coverage._draw_shapes`). Polygon ``k`` has vertices
     ``qx/qy[starts[k]:starts[k + 1]]`` and a bounding circle
     ``(poly_cx, poly_cy, poly_r)[k]`` (object coordinates) used to skip it;
     disks have centres ``ccx/ccy`` and ``radii``. Intensity
@@ -82,30 +95,31 @@ def _shapes_at(pix, cos_t, sin_t, shift_x, shift_y, width, center_x, center_y, q
         i = pix[j]
         y = i // width
         x = i - y * width
-        c = cos_t[j]
-        sn = sin_t[j]
+        theta, sx, sy = _motion_state(motion, t[j])
+        c = math.cos(theta)
+        sn = math.sin(theta)
         value = background
         for k in range(values.shape[0]):
             dx = poly_cx[k] - center_x
             dy = poly_cy[k] - center_y
-            mx = center_x + c * dx - sn * dy + shift_x[j]
-            my = center_y + sn * dx + c * dy + shift_y[j]
+            mx = center_x + c * dx - sn * dy + sx
+            my = center_y + sn * dx + c * dy + sy
             if math.hypot(x - mx, y - my) > poly_r[k] + _HALF_DIAG:
                 continue
             n = starts[k + 1] - starts[k]
             for v in range(n):
                 dx = qx[starts[k] + v] - center_x
                 dy = qy[starts[k] + v] - center_y
-                vx[v] = center_x + c * dx - sn * dy + shift_x[j]
-                vy[v] = center_y + sn * dx + c * dy + shift_y[j]
+                vx[v] = center_x + c * dx - sn * dy + sx
+                vy[v] = center_y + sn * dx + c * dy + sy
             cov = min(1.0, _polygon_box_area(vx, vy, n, x - 0.5, y - 0.5, x + 0.5, y + 0.5, ax, ay, bx, by))
             if cov > 0.0:
                 value += cov * (values[k] - background)
         for k in range(radii.shape[0]):
             dx = ccx[k] - center_x
             dy = ccy[k] - center_y
-            mx = center_x + c * dx - sn * dy + shift_x[j]
-            my = center_y + sn * dx + c * dy + shift_y[j]
+            mx = center_x + c * dx - sn * dy + sx
+            my = center_y + sn * dx + c * dy + sy
             r = radii[k]
             d = math.sqrt((x - mx) ** 2 + (y - my) ** 2)
             if d + _HALF_DIAG <= r:
@@ -122,15 +136,20 @@ def _shapes_at(pix, cos_t, sin_t, shift_x, shift_y, width, center_x, center_y, q
 
 
 @njit(cache=True)
-def _illinois_start(ia, ib, target, ta, tb, fa, fb, tc, active):
+def _illinois_start(ia, ib, target, shift, ta, tb, fa, fb, tc, active):
     """Start the brackets: ``f = I - target`` at both ends; returns the number still active.
 
-    Where the exact function shows no sign change over ``[ta, tb]`` (a level
-    within rounding of an end value) the root is the end nearer in ``f``
-    (written to ``tc``; inactive).
+    ``target`` is first moved by ``shift`` towards the start value ``ia``
+    (in place): the crossing instant is the *first* time the intensity
+    reaches the level, which is then a transversal root even where the
+    intensity only touches the level and stays there (a pixel returning to
+    the plateau it started on: its last level is that plateau's value).
+    Where the function shows no sign change over ``[ta, tb]`` the root is the
+    end nearer in ``f`` (written to ``tc``; inactive).
     """
     m = 0
     for j in range(ta.shape[0]):
+        target[j] += -shift if ib[j] > ia[j] else shift
         fa[j] = ia[j] - target[j]
         fb[j] = ib[j] - target[j]
         if fa[j] == 0.0:

@@ -58,12 +58,18 @@ SENSOR_EFFECT_PRESETS = {
                       leak_rate_hz=0.1, leak_rate_sigma=0.1, shot_noise_rate_hz=5.0, noise_resets=True),
     "v2e_clean": dict(contrast_pos=0.2, contrast_neg=0.2, contrast_sigma=0.02),
 }
+#: Values of ``ConverterParams.sampling``.
+SAMPLING = ("auto", "verified", "predicted", "geometric")
 #: Values of ``ConverterParams.crossing_times``.
 CROSSING_TIMES = ("auto", "exact", "linear")
 #: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
-EXACT_TOL_S = 1e-11
-#: ... or when the intensity is this close to the level's (a time error <= 1e-14 / |dI/dt| s).
-EXACT_TOL_I = 1e-14
+EXACT_TOL_S = 1e-10
+#: ... or when the intensity is this close to the (shifted) level's (a time error <= 1e-13 / |dI/dt| s).
+EXACT_TOL_I = 1e-13
+#: The level's intensity is moved this far towards the start value, so that the root is the first
+#: instant the level is reached (a time bias of 1e-11 / |dI/dt| s; where the intensity only touches
+#: the level, as on returning to a plateau, sqrt(1e-11 / a) for I = a (t - t*)^2, tens of ns).
+EXACT_SHIFT_I = 1e-11
 #: ... or after this many Illinois steps (a safeguard; about 10 are needed).
 _EXACT_MAX_STEPS = 100
 
@@ -157,9 +163,8 @@ class ConverterParams:
     noise_resets: bool = False
 
     def __post_init__(self) -> None:
-        if self.sampling not in ("auto", "verified", "predicted"):
-            raise ValueError("ConverterParams.sampling must be 'auto', 'verified' or 'predicted', "
-                             f"got {self.sampling!r}")
+        if self.sampling not in SAMPLING:
+            raise ValueError(f"ConverterParams.sampling must be one of {list(SAMPLING)}, got {self.sampling!r}")
         if self.crossing_times not in CROSSING_TIMES:
             raise ValueError(f"ConverterParams.crossing_times must be one of {list(CROSSING_TIMES)}, "
                              f"got {self.crossing_times!r}")
@@ -270,6 +275,13 @@ class EventConverter:
                              "(lowpass_cutoff_hz, leak_rate_hz, shot_noise_rate_hz, noise_resets): they act on "
                              "the sampled log intensity; use 'linear' or 'auto'")
         self.exact = can_exact and params.crossing_times != "linear" and not self.sensor_effects
+        if mode == "geometric" and not self.exact:
+            raise ValueError("ConverterParams.sampling='geometric' needs exact crossing times (a renderer with "
+                             "pixel_intensity and point_truth, no sensor effects)")
+        # exact crossing times do not need the lambda rule: only the geometric bound on the step
+        self.geometric_steps = mode == "geometric"
+        if self.geometric_steps:
+            self.verified = False
         self.reset()
 
     def reset(self) -> None:
@@ -393,6 +405,16 @@ class EventConverter:
             self._interval(self.t, t1, self._i, i1, n_cand)
             self.t = t1
             self._i = i1
+            self.n_samples += 1
+            return
+        if self.geometric_steps:
+            # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz only
+            t1 = min(self.t + self._propose(), self.duration_s)
+            i1, spans, n_spans = self._candidate(t1)
+            n_cand, _ = self._scan(self._i, i1, spans, n_spans)
+            self._interval(self.t, t1, self._i, i1, n_cand)
+            self.t = t1
+            self._accept(i1)
             self.n_samples += 1
             return
         limit = p.lambda_ * self._c_min
@@ -610,7 +632,7 @@ class EventConverter:
         active = np.empty(n, dtype=np.bool_)
         side = np.zeros(n, dtype=np.int8)
         target = np.exp(level) - p.log_eps  # the intensity of the level: the same root, found faster
-        left = _illinois_start(ia, ib, target, ta, tb, fa, fb, tc, active)
+        left = _illinois_start(ia, ib, target, EXACT_SHIFT_I, ta, tb, fa, fb, tc, active)
         steps = 0
         while left and steps < _EXACT_MAX_STEPS:
             idx = np.flatnonzero(active)

@@ -195,6 +195,7 @@ class ShapesRenderer(_CoverageRenderer):
         self._bcy = np.array([p.vertices_px[:, 1].mean() for p in self.polygons], dtype=np.float64)
         self._br = np.array([np.max(np.hypot(p.vertices_px[:, 0] - a, p.vertices_px[:, 1] - b))
                              for p, a, b in zip(self.polygons, self._bcx, self._bcy)], dtype=np.float64)
+        self._motion_array = None  # the motion's parameters for the pixel_intensity kernel
         self._qx = np.empty_like(self._allx)  # scratch: image positions of the points
         self._qy = np.empty_like(self._allx)
 
@@ -225,11 +226,15 @@ class ShapesRenderer(_CoverageRenderer):
             time (the values of :meth:`intensity`, from clipping against the
             pixel square rather than row accumulation: equal to ~1e-15).
         """
-        theta, _, sx, sy, _, _ = self.motion.state(np.asarray(t_s, dtype=np.float64))
-        cx, cy = self.motion.center_px
+        m = self.motion
+        if self._motion_array is None:
+            self._motion_array = np.array([m.angle_rad, m.angular_velocity_rad_s, m.angular_acceleration_rad_s2,
+                                           m.angle_amplitude_rad, m.frequency_hz, m.chirp_hz_s, *m.velocity_px_s,
+                                           *m.acceleration_px_s2, *m.amplitude_px], dtype=np.float64)
+        cx, cy = m.center_px
         out = np.empty(pix.shape[0])
-        _shapes_at(pix, np.cos(theta), np.sin(theta), np.ascontiguousarray(sx, dtype=np.float64),
-                   np.ascontiguousarray(sy, dtype=np.float64), self.width, cx, cy, self._px, self._py, self._pstart,
+        _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_array, self.width, cx, cy,
+                   self._px, self._py, self._pstart,
                    self._pvalue, self._bcx, self._bcy, self._br, self._cx, self._cy, self._cr, self._cvalue,
                    self.background, self._may_overlap, out)
         return out

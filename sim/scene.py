@@ -233,7 +233,7 @@ def _params(t: _Table) -> ConverterParams:
         min_rate_hz=t.number("min_rate_hz", d.min_rate_hz, lo=0, lo_open=True),
         max_step_px=t.number("max_step_px", d.max_step_px, lo=0, lo_open=True),
         min_step_s=t.number("min_step_s", d.min_step_s, lo=0, lo_open=True),
-        sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted")),
+        sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted", "geometric")),
         crossing_times=t.string("crossing_times", d.crossing_times, choices=("auto", "exact", "linear")),
         lowpass_cutoff_hz=t.number("lowpass_cutoff_hz", d.lowpass_cutoff_hz, lo=0, hi=1e9),
         leak_rate_hz=t.number("leak_rate_hz", d.leak_rate_hz, lo=0, hi=1e6),
