@@ -9,7 +9,9 @@ Run: ``.venv/bin/python benchmarks/bench_sim.py [--quick] [--no-3d] [--frames-on
 ``boxes_3d`` (pyrender). Frames are off (pure event generation); each scene is
 run once briefly first so numba compilation and GL start-up are not counted.
 One process, numba on one thread. Section rows count samples, not events.
-Frames rows: ``shapes_translation`` rendered (not timed) at 1 kHz and 5 kHz
+Rows say the sampling (default: verified steps with ``lambda = 0.5``; ``geometric``: steps
+bounded by ``max_step_px`` only, for exact crossing times) and the crossing times (default exact;
+``linear``: ESIM's interpolation). Frames rows: ``shapes_translation`` rendered (not timed) at 1 kHz and 5 kHz
 into memory, then converted by :func:`evedge.sim.simulate_frames` (ESIM's
 algorithm, the scenes' pixel model): the frames path's speed without decoding.
 """
@@ -31,11 +33,11 @@ from evedge.sim import parse_scene, simulate  # noqa: E402
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 
 
-def _scene(name: str, sensor: str | None = None):
-    data = tomllib.loads((SCENES / f"{name}.toml").read_text())
+def _scene(name: str, sensor: str | None = None, **events):
+    data = copy.deepcopy(tomllib.loads((SCENES / f"{name}.toml").read_text()))
     if sensor:
-        data = copy.deepcopy(data)
         data["sensor"] = {"preset": sensor}
+    data.setdefault("events", {}).update(events)
     return parse_scene(data, source=f"{name}.toml")
 
 
@@ -103,7 +105,12 @@ def main() -> None:
     if args.frames_only:
         return
     _run("stripes (analytic, 50 + 125 px/s)", _scene("stripes", "davis240"), 0.8 * k)
+    _run("stripes, geometric sampling", _scene("stripes", "davis240", sampling="geometric"), 0.8 * k)
+    _run("stripes, linear times (ESIM)", _scene("stripes", "davis240", crossing_times="linear"), 0.8 * k)
     _run("stripes (analytic, dvs128 as shipped)", _scene("stripes"), 0.8 * k)
+    _run("shapes_translation, geometric sampling", _scene("shapes_translation", sampling="geometric"), 2.0 * k)
+    _run("shapes_translation, lambda = 1", _scene("shapes_translation", **{"lambda": 1.0}), 2.0 * k)
+    _run("shapes_translation, linear times (ESIM)", _scene("shapes_translation", crossing_times="linear"), 2.0 * k)
     _run("shapes_translation (analytic, full 2 s)", tr, 2.0 * k)
     if not args.quick:
         _sections("shapes_translation", tr)

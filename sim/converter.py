@@ -25,11 +25,30 @@ Adaptive sampling, two modes (``sampling``):
   ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
   differences of the current sample, capped as above by ``1 / min_rate_hz``
   and ``max_step_px / v_max``.
+- ``"geometric"`` (exact crossing times only): steps of
+  ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (the times do
+  not need it; only a brief excursion of a pixel's intensity inside one step
+  can be missed).
+- Renderers with fixed sample times (``next_sample_s``: frames input) are
+  sampled exactly there.
+
+Crossing times (``crossing_times``): ``"exact"`` (the default where the
+renderer offers ``pixel_intensity``, the analytic planar scenes) solves each
+crossing for its instant on the closed-form pixel intensity (see
+:meth:`EventConverter._refine`); ``"linear"`` interpolates ``L`` linearly
+between the samples (ESIM). Either way the event's ``t`` is whole
+microseconds and the truth's ``t_ns`` the same instant in nanoseconds.
+
+Sensor effects (all off by default; v2e's pixel model [2]_): photoreceptor
+low-pass, leak events, shot noise, noise that resets the pixel; see
+:class:`ConverterParams` and :mod:`evedge.sim._sensor`.
 
 References
 ----------
 .. [1] H. Rebecq, D. Gehrig, D. Scaramuzza, "ESIM: an Open Event Camera
        Simulator", CoRL 2018.
+.. [2] Y. Hu, S.-C. Liu, T. Delbruck, "v2e: From video frames to realistic
+       DVS events", CVPR Workshops 2021.
 """
 
 from __future__ import annotations
