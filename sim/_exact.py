@@ -172,7 +172,8 @@ def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, tol_s, tol_i, acti
     The bracket ``[ta, tb]`` keeps a sign change of ``f``; the new point
     replaces the end of its sign, and when the same end is kept twice in a
     row the other end's ``f`` is halved (the Illinois modification:
-    superlinear, never slower than bisection by much). The function is the
+    superlinear), and after three moves of one end in a row the step is a
+    bisection (a safeguard: never much slower than bisection). The function is the
     intensity, not its log (the same root: the log is monotone), because it
     is linear in time wherever an edge crosses a pixel along a row, where
     regula falsi is exact in one step. A crossing is done when its bracket is
@@ -185,26 +186,34 @@ def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, tol_s, tol_i, acti
         if abs(fc) <= tol_i:
             active[j] = False
             continue
+        # side: -k / +k when the low / high end moved the last k times in a row
         if (fc > 0.0) == (fa[j] > 0.0):
             ta[j] = tc[j]
             fa[j] = fc
-            if side[j] == -1:
+            if side[j] < 0:
                 fb[j] *= 0.5
-            side[j] = -1
+                side[j] -= 1
+            else:
+                side[j] = -1
         else:
             tb[j] = tc[j]
             fb[j] = fc
-            if side[j] == 1:
+            if side[j] > 0:
                 fa[j] *= 0.5
-            side[j] = 1
+                side[j] += 1
+            else:
+                side[j] = 1
         if tb[j] - ta[j] <= tol_s:
             tc[j] = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
             active[j] = False
             continue
         t = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
-        # keep strictly inside the bracket (rounding), else bisect
-        if not (ta[j] < t < tb[j]):
+        # keep strictly inside the bracket (rounding), and bisect when one end has moved three times in a
+        # row (a function flat on one side, e.g. touching a plateau, stalls regula falsi): the bracket then
+        # at least halves every few steps
+        if not (ta[j] < t < tb[j]) or abs(side[j]) >= 3:
             t = 0.5 * (ta[j] + tb[j])
+            side[j] = 0
         tc[j] = t
         m += 1
     return m
@@ -278,3 +287,32 @@ def _refractory_jitter(pix, t, last_t, seq, refractory_s, jitter_s, jitter_seed,
         else:
             keep[j] = False
     return n
+
+
+@njit(cache=True)
+def _hidden_crossing(i0, im, i1, eps, lref, cpos, cneg, spans, n_spans):
+    """Whether the midpoint sample ``im`` shows a level crossing the end samples ``i0``, ``i1`` do not.
+
+    For each pixel of the spans (flat ranges, as :func:`~evedge.sim._events._box_spans`)
+    whose midpoint intensity lies outside the range of its two end values, the
+    levels ``lref + k cpos`` (above) or ``lref - k cneg`` (below) between the
+    nearer end and the midpoint are counted; any such level means the step
+    hides an excursion (up and back, or down and back) whose crossings the
+    end values alone would miss. Returns True at the first one.
+    """
+    for s in range(n_spans):
+        for i in range(spans[2 * s], spans[2 * s + 1]):
+            a0 = i0[i] + eps
+            am = im[i] + eps
+            a1 = i1[i] + eps
+            hi = max(a0, a1)
+            lo = min(a0, a1)
+            if am > hi:
+                lr = lref[i]
+                if math.floor((math.log(am) - lr) / cpos[i]) > max(0.0, math.floor((math.log(hi) - lr) / cpos[i])):
+                    return True
+            elif am < lo:
+                lr = lref[i]
+                if math.floor((lr - math.log(am)) / cneg[i]) > max(0.0, math.floor((lr - math.log(lo)) / cneg[i])):
+                    return True
+    return False

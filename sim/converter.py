@@ -27,8 +27,11 @@ Adaptive sampling, two modes (``sampling``):
   and ``max_step_px / v_max``.
 - ``"geometric"`` (exact crossing times only): steps of
   ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (the times do
-  not need it; only a brief excursion of a pixel's intensity inside one step
-  can be missed).
+  not need it), halved while the step's midpoint shows an excursion that
+  hides a crossing (a pixel beyond a level that neither end reaches); an
+  excursion shorter than half a step can still be missed (measured on
+  ``shapes_translation``: 0.05 % of the events, at star tips; none on
+  ``stripes``).
 - Renderers with fixed sample times (``next_sample_s``: frames input) are
   sampled exactly there.
 
@@ -60,7 +63,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
-from ._exact import _crossing_levels, _illinois_start, _illinois_step, _refractory_jitter
+from ._exact import _crossing_levels, _hidden_crossing, _illinois_start, _illinois_step, _refractory_jitter
 from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
@@ -395,6 +398,22 @@ class EventConverter:
             self._spans = np.empty(2 * self.height * nb, dtype=np.int64)
         return self._bufs[k], self._spans, _box_spans(boxes, nb, self.width, self.height, self._spans)
 
+    def _hides_crossing(self, tm: float) -> bool:
+        """Geometric sampling: does the sample at ``tm`` (inside the step just drawn) show a hidden crossing?"""
+        if len(self._bufs) < 3:
+            self._bufs.append(np.empty(self.width * self.height))
+            self._boxes.append(None)
+            self._spans3 = np.empty(0, dtype=np.int64)
+        mid = self._draw_into(2, tm)
+        boxes = np.concatenate([self._boxes[self._cur], self._boxes[1 - self._cur], mid])
+        nb = boxes.shape[0] // 4
+        if self._spans3.shape[0] < 2 * self.height * nb:
+            self._spans3 = np.empty(2 * self.height * nb, dtype=np.int64)
+        n = _box_spans(boxes, nb, self.width, self.height, self._spans3)
+        p = self.params
+        return bool(_hidden_crossing(self._i, self._bufs[2], self._bufs[1 - self._cur], p.log_eps, self.lref,
+                                     self.cpos, self.cneg, self._spans3, n))
+
     def _accept(self, i1: np.ndarray) -> None:
         if self._into:
             self._cur = 1 - self._cur
@@ -427,9 +446,16 @@ class EventConverter:
             self.n_samples += 1
             return
         if self.geometric_steps:
-            # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz only
-            t1 = min(self.t + self._propose(), self.duration_s)
-            i1, spans, n_spans = self._candidate(t1)
+            # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz, halved
+            # while the midpoint shows an excursion hiding a crossing
+            dt = self._propose()
+            while True:
+                t1 = min(self.t + dt, self.duration_s)
+                i1, spans, n_spans = self._candidate(t1)
+                if t1 - self.t <= p.min_step_s * 1.0000001 or not self._hides_crossing(0.5 * (self.t + t1)):
+                    break
+                self.n_rejected += 1
+                dt = max(p.min_step_s, 0.5 * (t1 - self.t))
             n_cand, _ = self._scan(self._i, i1, spans, n_spans)
             self._interval(self.t, t1, self._i, i1, n_cand)
             self.t = t1
