@@ -26,13 +26,15 @@ def _out_dir(ctx, param, value):
 
 
 def _scene(ctx, param, value):
-    """A scene name must name a file in scenes/ (checked before the simulation starts)."""
-    from .exp_similarity import scenes_dir
+    """A shipped scene's name or a TOML file (checked before the simulation starts)."""
+    from .exp_similarity import scene_path
 
-    if not (scenes_dir() / f"{value}.toml").is_file():
-        known = sorted(p.stem for p in scenes_dir().glob("*.toml"))
-        raise click.BadParameter(f"no scene {value!r} in {scenes_dir()}; available: {', '.join(known) or 'none'}",
-                                 ctx=ctx, param=param)
+    if value is None:
+        return None
+    try:
+        scene_path(value)
+    except FileNotFoundError as err:
+        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
     return value
 
 
@@ -41,6 +43,25 @@ _OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_
 _QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
 _NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
 _SEED = click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of simulations and RANSAC study.")
+def _methods(ctx, param, values):
+    """Each --method must be a registered estimator or edge detector, or a resolvable module:factory."""
+    from evedge.detector.protocols import METHODS
+
+    for v in values:
+        try:
+            METHODS.get(v, kind=("estimator", "edges"))
+        except (LookupError, ValueError) as err:
+            raise click.BadParameter(str(err), ctx=ctx, param=param) from None
+    return tuple(values)
+
+
+_METHOD = click.option("--method", "methods_extra", multiple=True, callback=_methods, metavar="NAME",
+                       help="Also compare this method (repeatable): a registered method (entry-point group "
+                            "evedge.methods) or package.module:factory; shown beside the paper's, never ranked "
+                            "in the paper's verdicts.")
+_DATA = click.option("--data", "data_dir", type=click.Path(exists=True, file_okay=False, path_type=Path),
+                     default=None, help="Folder of the real recordings (default: $EVEDGE_DATA, else "
+                                        "../shared/realdata beside the repository).")
 _DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor", "lifetime_only"]), multiple=True,
                         help="Display policy of the lifetime methods (repeatable; default both). predecessor: "
                              "clear the pixel behind each event (primary); lifetime_only: nothing cleared.")
@@ -67,13 +88,25 @@ def _summary(results: dict, t0: float) -> None:
 @_QUICK
 @_NOPROG
 @_SEED
-def paper(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
-    """Run every experiment; write OUT/report.html and OUT/results.json."""
-    from .paper import run_paper
+@click.option("--only", "only", multiple=True, type=click.Choice(["ransac", "lifetime", "similarity", "real",
+                                                                    "qualitative"]),
+              help="Run only these experiments (repeatable; default all).")
+@click.option("--scene", default=None, callback=_scene,
+              help="Scene of the similarity experiment: a shipped scene's name or a TOML file "
+                   "(default shapes_translation).")
+@_METHOD
+@_DATA
+def paper(out: Path, quick: bool, no_progress: bool, seed: int, only: tuple, scene, methods_extra: tuple,
+          data_dir) -> None:
+    """Run every experiment; write OUT/report.html, OUT/results.json and OUT/results.csv|h5 (the long table)."""
+    from .paper import EXPERIMENTS, run_paper
 
     t0 = time.perf_counter()
-    cmd = "evedge bench paper" + (" --quick" if quick else "")
-    results = run_paper(out, quick=quick, progress=not no_progress, seed=seed, command=cmd)
+    cmd = " ".join(["evedge bench paper"] + (["--quick"] if quick else []) + [f"--only {o}" for o in only]
+                   + ([f"--scene {scene}"] if scene else []) + [f"--method {m}" for m in methods_extra])
+    results = run_paper(out, quick=quick, progress=not no_progress, seed=seed, command=cmd,
+                        experiments=tuple(only) or EXPERIMENTS, scene=scene, methods_extra=methods_extra,
+                        data_dir=data_dir)
     _summary(results, t0)
     if results.get("errors"):
         sys.exit(1)
@@ -102,11 +135,12 @@ def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: in
 @_QUICK
 @_NOPROG
 @_SEED
-def lifetime(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
+@_DATA
+def lifetime(out: Path, quick: bool, no_progress: bool, seed: int, data_dir) -> None:
     """Lifetime histograms and images on real and simulated stripes (paper figs. 4-5)."""
     from .exp_lifetime import run_lifetime
 
-    res = run_lifetime(out, quick=quick, progress=not no_progress, seed=seed)
+    res = run_lifetime(out, quick=quick, progress=not no_progress, seed=seed, data_dir=data_dir)
     click.echo("\n".join(res["figures"]))
 
 
@@ -116,27 +150,38 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int) -> None:
 @_NOPROG
 @_SEED
 @click.option("--scene", default="shapes_translation", show_default=True, callback=_scene,
-              help="Scene in scenes/.")
+              help="A shipped scene's name or a scene TOML file.")
 @_DISPLAY
-def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str, displays: tuple) -> None:
-    """CDM over time against Canny and exact edges, box plots per section (paper fig. 9)."""
+@_METHOD
+def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str, displays: tuple,
+               methods_extra: tuple) -> None:
+    """CDM over time against Canny and exact edges, box plots per section (paper fig. 9).
+
+    Writes figures, similarity_SCENE.csv|json and the long table OUT/results.csv|h5.
+    """
     from .exp_similarity import run_similarity
     from .methods import DISPLAYS
+    from .results import ResultsTable, cdm_rows
 
     res = run_similarity(out, scene=scene, quick=quick, progress=not no_progress, seed=seed,
-                         displays=tuple(displays) or DISPLAYS)
-    click.echo("\n".join(res["figures"]))
+                         displays=tuple(displays) or DISPLAYS, methods_extra=methods_extra)
+    table = ResultsTable()
+    for name, r in res["scenes"].items():
+        table.extend(cdm_rows("similarity", name, r["cdm"]), experiment="similarity")
+    paths = table.save(out / "results")
+    click.echo("\n".join(res["figures"] + [str(p) for p in paths]))
 
 
 @bench.command()
 @_OUT
 @_QUICK
 @_NOPROG
-def qualitative(out: Path, quick: bool, no_progress: bool) -> None:
+@_DATA
+def qualitative(out: Path, quick: bool, no_progress: bool, data_dir) -> None:
     """Grey, Canny, proposed, Mueggler, 1 ms and 30 ms side by side (paper figs. 1, 8), on slider_depth."""
     from .exp_qualitative import run_qualitative
 
-    res = run_qualitative(out, quick=quick, progress=not no_progress)
+    res = run_qualitative(out, quick=quick, progress=not no_progress, data_dir=data_dir)
     click.echo("\n".join(res["figures"]))
 
 
@@ -145,9 +190,12 @@ def qualitative(out: Path, quick: bool, no_progress: bool) -> None:
 @_QUICK
 @_NOPROG
 @click.option("--path", type=click.Path(exists=True, path_type=Path), default=None,
-              help="Recording with frames (default ../shared/realdata/slider_depth).")
+              help="Recording with frames (default DATA/slider_depth).")
 @_DISPLAY
-def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays: tuple) -> None:
+@_METHOD
+@_DATA
+def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays: tuple, methods_extra: tuple,
+         data_dir) -> None:
     """CDM against Canny at the real frames that fall inside the events."""
     from .exp_real import run_real
     from .methods import DISPLAYS
@@ -158,7 +206,7 @@ def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays:
 
     try:
         res = run_real(out, path=path, quick=quick, progress=not no_progress,
-                       displays=tuple(displays) or DISPLAYS)
+                       displays=tuple(displays) or DISPLAYS, methods_extra=methods_extra, data_dir=data_dir)
     except (EventFileError, NoFramesError) as err:  # the recording, not the code, is at fault
         raise click.ClickException(str(err)) from None
     click.echo("\n".join(res["figures"]))
@@ -179,3 +227,40 @@ def demo(out: Path, no_progress: bool, seed: int) -> None:
     _summary(results, t0)
     if results.get("errors"):
         sys.exit(1)
+
+
+@click.command()
+@click.argument("dataset", type=click.Path(exists=True, path_type=Path))
+@click.option("-d", "--detections", required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="evedge detect's detection.h5, or a plain layout: .h5/.hdf5/.npz with lifetime_us, vx_px_s, "
+                   "vy_px_s, kept (one value per dataset event, in its order) and/or edge_t_us + edge_images, "
+                   "or a .csv with those per-event columns.")
+@_OUT
+@click.option("--method", "method", default=None,
+              help="Name of the method in the results (default: the detection file's method, else its file name).")
+@click.option("--canny-settings", type=click.IntRange(1, 3), default=1, show_default=True,
+              help="How many Canny settings to grade the edge frames against (the first is MATLAB's 0.3).")
+def grade(dataset: Path, detections: Path, out: Path, method: str | None, canny_settings: int) -> None:
+    """Grade DETECTIONS of any method against the exact truth of DATASET.
+
+    Figures: lifetime error (median relative, p90, share estimated) per
+    section, normal-flow angle and magnitude error, noise-filter precision and
+    recall against the noise labels, CDM against the exact edges and Canny at
+    the frame times. Writes OUT/grade.csv, OUT/grade.h5 (the long table),
+    OUT/grade.json, OUT/grade.png and OUT/report.html.
+    """
+    from .grade import GradeError
+    from .grade import grade as run_grade
+
+    cmd = f"evedge grade {dataset} -d {detections} -o {out}"
+    try:
+        res = run_grade(dataset, detections, out, method=method, canny_settings=canny_settings, command=cmd)
+    except GradeError as err:
+        raise click.ClickException(str(err)) from None
+    table = res["table"]
+    for r in table.query(section="all"):
+        if r["metric"] in ("median_rel_error", "p90_rel_error", "share_estimated", "median_angle_error_deg",
+                           "median_rel_magnitude_error", "noise_precision", "noise_recall", "median_cdm"):
+            click.echo(f"  {r['metric']:<28s} {r['reference']:<18s} {r['value']:.4g}")
+    click.echo(f"{len(table)} rows -> {res['files'][0]}")
+    click.echo(f"report: {Path(res['report']).resolve()}")

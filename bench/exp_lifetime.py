@@ -47,10 +47,10 @@ from pathlib import Path
 import numpy as np
 
 from ._files import save_figure, write_csv_atomic, write_json_atomic
-from ._plot import METHOD_COLOURS, pyplot
+from ._plot import pyplot
 from .exp_real import default_realdata_dir
 from .exp_similarity import simulate_scene
-from .methods import METHOD_LABELS, mueggler_lifetimes, proposed_lifetimes
+from .methods import colour as method_colour, label as method_label, mueggler_lifetimes, proposed_lifetimes
 from .regions import NoRegionsError, regions_from_delays, regions_from_truth, row_agreement
 from .stats import histogram_peaks, log_spread, relative_errors, shoulder_peaks
 
@@ -244,7 +244,7 @@ def _as_lifetimes(t: np.ndarray) -> np.ndarray:
 
 def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: int = 0,
                  real_path=None, sim_duration_s: float | None = None, datasets=("stripes_real", "stripes_sim"),
-                 recordings: dict | None = None) -> dict:
+                 recordings: dict | None = None, data_dir=None) -> dict:
     """Lifetime histograms, accumulated lifetime images and errors on the stripes data.
 
     Parameters
@@ -262,6 +262,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         Which of ``stripes_real`` and ``stripes_sim`` to run.
     recordings : dict, optional
         Precomputed recordings by dataset name (skips reading/simulating).
+    data_dir : path, optional
+        Folder of the real recordings (default ``$EVEDGE_DATA``, else ``../shared/realdata``).
 
     Returns
     -------
@@ -270,6 +272,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         "truth": {...}}}, "figures": [...]}``
     """
     out_dir = Path(out_dir)
+    if real_path is None and data_dir is not None:
+        real_path = default_realdata_dir(data_dir) / "rpg_event_lifetime" / "stripes.mat"
     recordings = dict(recordings or {})
     results, figures, rows, region_rows, skipped = {}, [], [], [], {}
     for name in datasets:
@@ -347,7 +351,7 @@ def plot_histogram(ax, name: str, res: dict, arrays: dict) -> None:
         bins = np.logspace(lo, hi, 100)
         for k in keys:
             vals = arrays[k][0]
-            colour = METHOD_COLOURS.get(k, "k")
+            colour = method_colour(k)
             if k == "truth":
                 # the true lifetimes are a few exact values: mark them, a histogram
                 # spike would flatten the estimators' curves
@@ -355,7 +359,7 @@ def plot_histogram(ax, name: str, res: dict, arrays: dict) -> None:
                     ax.axvline(p["median"], color="k", lw=1.5, ls="--",
                                label="true lifetimes" if j == 0 else None)
                 continue
-            ax.hist(vals, bins=bins, histtype="step", lw=1.5, color=colour, label=METHOD_LABELS.get(k, k),
+            ax.hist(vals, bins=bins, histtype="step", lw=1.5, color=colour, label=method_label(k),
                     density=True)
             for p in res["methods"][k]["peaks"]:
                 ax.axvline(p["mode"], color=colour, lw=0.8, ls=":")
@@ -380,7 +384,7 @@ def plot_images(fig, axes, name: str, arrays: dict, regions: dict | None = None)
     im = None
     for ax, k in zip(axes, keys):
         im = ax.imshow(arrays[k][1] / 1e3, cmap="jet", norm=LogNorm(vmin=vmin, vmax=vmax))
-        ax.set_title(METHOD_LABELS.get(k, "ground truth"), fontsize=8)
+        ax.set_title((method_label(k) if k != "truth" else "ground truth"), fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
         if regions is not None:  # the speed regions' rows, as a strip left of the image
@@ -405,9 +409,9 @@ def plot_regions(axes, name: str, res: dict, arrays: dict) -> None:
                 if k == "truth":
                     continue
                 q = res["methods"][k]["regions"][reg]
-                colour = METHOD_COLOURS.get(k, "k")
+                colour = method_colour(k)
                 ax.hist(arrays[k][2][reg], bins=bins, histtype="step", lw=1.5, color=colour, density=True,
-                        label=f"{METHOD_LABELS.get(k, k)}: MAD {q['mad_log10']:.3f} dec, "
+                        label=f"{method_label(k)}: MAD {q['mad_log10']:.3f} dec, "
                               f"{100 * q['frac_within']:.0f}% in +-20%")
                 ax.axvline(q["mode"], color=colour, lw=0.8, ls=":")
             tl = (regions.get("truth_lifetime_us") or {}).get(reg)

@@ -17,7 +17,8 @@ import numpy as np
 from ._files import save_figure, write_json_atomic
 from ._plot import pyplot
 from .canny import CANNY_SETTINGS, canny_edges
-from .methods import DISPLAY_LABELS, METHOD_LABELS, PRIMARY_DISPLAY, edge_maps, method_key
+from .methods import DISPLAY_LABELS, PRIMARY_DISPLAY, edge_maps, method_key
+from .methods import label as method_label
 
 #: Result keys of the panel's columns: the lifetime methods under the primary display policy.
 PANEL_METHODS = (method_key("proposed", PRIMARY_DISPLAY), method_key("mueggler", PRIMARY_DISPLAY),
@@ -43,7 +44,8 @@ def rows_from_maps(label: str, kept: dict, picks) -> list[dict]:
     return rows
 
 
-def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = False, progress: bool = True) -> dict:
+def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = False, progress: bool = True,
+                    data_dir=None) -> dict:
     """Draw the panel.
 
     Parameters
@@ -53,6 +55,8 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
         From :func:`panel_row`; default: two frames of the real ``slider_depth``.
     quick, progress : bool
         Unused beyond the default rows (kept for a uniform experiment signature).
+    data_dir : path, optional
+        Folder of the real recordings, for the default rows (see :func:`~evedge.bench.exp_real.default_realdata_dir`).
 
     Returns
     -------
@@ -61,7 +65,7 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
     """
     out_dir = Path(out_dir)
     if rows is None:
-        rows = _default_rows()
+        rows = _default_rows(data_dir)
     if not rows:
         raise ValueError("run_qualitative: no rows to draw")
     plt = pyplot()
@@ -82,7 +86,7 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
             ax.set_xticks([])
             ax.set_yticks([])
             if r == 0:
-                label = {"grey": "grey frame", "canny": "Canny (MATLAB 0.3)"}.get(col, METHOD_LABELS.get(col, col))
+                label = {"grey": "grey frame", "canny": "Canny (MATLAB 0.3)"}.get(col) or method_label(col)
                 ax.set_title(label, fontsize=8)
             if c == 0:
                 ax.set_ylabel(row["title"], fontsize=7)
@@ -95,12 +99,12 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
     return out
 
 
-def _default_rows() -> list[dict]:
+def _default_rows(data_dir=None) -> list[dict]:
     from evedge.io import read_events
 
     from .exp_real import default_realdata_dir, frames_inside_events
 
-    path = default_realdata_dir() / "slider_depth"
+    path = default_realdata_dir(data_dir) / "slider_depth"
     rec = read_events(path)
     idx = frames_inside_events(rec)[1:3]
     times = rec.frames.t_us[idx]

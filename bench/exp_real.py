@@ -18,15 +18,24 @@ from pathlib import Path
 import numpy as np
 
 from ._files import save_figure, write_csv_atomic, write_json_atomic
-from ._plot import METHOD_COLOURS, pyplot
+from ._plot import pyplot
 from .canny import CANNY_SETTINGS
 from .frame_eval import canny_references, cdm_table, summarise
-from .methods import (ACCUMULATION_METHODS, DISPLAY_LABELS, DISPLAYS, METHOD_LABELS, PRIMARY_DISPLAY,
-                      check_displays, display_record, edge_maps, methods_for, split_key)
+from .methods import (ACCUMULATION_METHODS, DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, add_method, check_displays,
+                      colour, compared, display_record, edge_maps, label, methods_for)
 
 #: Where the shared real recordings live, relative to the repository (``../shared/realdata``).
-def default_realdata_dir() -> Path:
-    """``<repo>/../shared/realdata`` (the repository sits beside ``shared/``)."""
+def default_realdata_dir(data_dir=None) -> Path:
+    """Folder of the real recordings: ``data_dir``, else ``$EVEDGE_DATA``, else ``<repo>/../shared/realdata``.
+
+    The last is where a repository checkout finds them (it sits beside ``shared/``).
+    """
+    import os
+
+    if data_dir is not None:
+        return Path(data_dir)
+    if os.environ.get("EVEDGE_DATA"):
+        return Path(os.environ["EVEDGE_DATA"])
     return Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 
 
@@ -52,7 +61,7 @@ def count_for(references: dict[str, np.ndarray]) -> int:
 
 
 def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, name: str = "slider_depth",
-             keep_maps: bool = False, displays=DISPLAYS) -> dict:
+             keep_maps: bool = False, displays=DISPLAYS, methods_extra=(), data_dir=None) -> dict:
     """CDM against Canny at the real frames inside the events.
 
     Parameters
@@ -70,6 +79,11 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
         Also return the grey frames, Canny and method maps (for the qualitative panel).
     displays : sequence of str
         Display policies of the lifetime methods (default both); recorded in the result.
+    methods_extra : sequence of str
+        Other registered methods (or ``package.module:factory``) compared beside
+        the paper's (see :func:`evedge.bench.methods.add_method`).
+    data_dir : path, optional
+        Folder of the real recordings (see :func:`default_realdata_dir`).
 
     Returns
     -------
@@ -82,7 +96,7 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
 
     displays = check_displays(displays, "run_real")
     out_dir = Path(out_dir)
-    path = Path(path) if path is not None else default_realdata_dir() / "slider_depth"
+    path = Path(path) if path is not None else default_realdata_dir(data_dir) / "slider_depth"
     if not path.exists():
         raise FileNotFoundError(f"run_real: recording not found: {path}")
     rec = read_events(path)
@@ -95,6 +109,8 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     refs = canny_references(grey, settings)
     count_n = count_for(refs)
     methods = methods_for(displays) + ACCUMULATION_METHODS + methods_for(displays, bases=("mueggler_t0",))
+    for extra in methods_extra:
+        methods += tuple(k for k in add_method(extra) if compared(k).display in (None, *displays))
     maps, _ = edge_maps(rec.events, rec.sensor_size, times, methods=methods, count_n=count_n)
     table = cdm_table(maps, refs, progress=progress, desc=f"CDM {name}")
     summary = {ref: {m: summarise(v) for m, v in per.items()} for ref, per in table.items()}
@@ -118,9 +134,9 @@ def _plot(out_dir: Path, name: str, times, table) -> Path:
     fig, axes = plt.subplots(1, len(refs), figsize=(4.2 * len(refs), 3.6), squeeze=False)
     for ax, ref in zip(axes[0], refs):
         for m, v in table[ref].items():
-            if split_key(m)[1] not in (None, PRIMARY_DISPLAY):
+            if compared(m).display not in (None, PRIMARY_DISPLAY):
                 continue  # the figure shows the primary display; the tables have both
-            ax.plot(np.asarray(times) / 1e3, v, marker="o", color=METHOD_COLOURS.get(m), label=METHOD_LABELS[m])
+            ax.plot(np.asarray(times) / 1e3, v, marker="o", color=colour(m), label=label(m))
         ax.set_title(f"{name}: CDM vs {ref}", fontsize=9)
         ax.set_xlabel("frame time (ms)")
         ax.set_ylabel("CDM")

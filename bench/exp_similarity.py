@@ -22,30 +22,68 @@ from pathlib import Path
 import numpy as np
 
 from ._files import save_figure, write_csv_atomic, write_json_atomic
-from ._plot import METHOD_COLOURS, pyplot
+from ._plot import pyplot
 from .canny import CANNY_SETTINGS
 from .exp_real import count_for
 from .frame_eval import canny_references, cdm_table, summarise
-from .methods import (ACCUMULATION_METHODS, DISPLAY_LABELS, DISPLAYS, METHOD_LABELS, PRIMARY_DISPLAY,
-                      check_displays, display_record, edge_maps, methods_for, split_key)
+from .methods import (ACCUMULATION_METHODS, COMPARED, DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, add_method,
+                      check_displays, colour, compared, display_record, edge_maps, label, methods_for)
 
 #: Frames earlier than this after the first event are skipped (the longest window, 30 ms).
 WARMUP_US = 30_000
 
 
 def scenes_dir() -> Path:
-    """The repository's ``scenes/`` directory."""
-    return Path(__file__).resolve().parents[1] / "scenes"
+    """The shipped scenes: the package data ``evedge.scenes`` (the repository's ``scenes/``)."""
+    from importlib.resources import files
+
+    try:
+        return Path(str(files("evedge.scenes")))
+    except ModuleNotFoundError:  # an old editable install that predates the package data
+        return Path(__file__).resolve().parents[1] / "scenes"
 
 
-def simulate_scene(name: str, *, seed: int = 0, duration_s: float | None = None,
+def shipped_scenes() -> tuple[str, ...]:
+    """Names of the shipped scenes (``shapes_translation``, ``stripes``, ...)."""
+    return tuple(sorted(p.stem for p in scenes_dir().glob("*.toml")))
+
+
+def scene_path(scene) -> Path:
+    """The TOML file of a scene given by shipped name (``stripes``) or by path (``my/scene.toml``).
+
+    Raises
+    ------
+    FileNotFoundError
+        Naming the scene and the shipped ones.
+    """
+    text = str(scene)
+    if text.endswith(".toml") or "/" in text or isinstance(scene, Path):
+        path = Path(scene)
+        if not path.is_file():
+            raise FileNotFoundError(f"scene file not found: {path}")
+        return path
+    path = scenes_dir() / f"{text}.toml"
+    if not path.is_file():
+        raise FileNotFoundError(f"no shipped scene {text!r} (in {scenes_dir()}); shipped: "
+                                f"{', '.join(shipped_scenes()) or 'none'}; or give a path to a .toml file")
+    return path
+
+
+def scene_label(scene) -> str:
+    """The name a scene goes by in results: its shipped name or its file's stem."""
+    return Path(str(scene)).stem if str(scene).endswith(".toml") else str(scene)
+
+
+def simulate_scene(name, *, seed: int = 0, duration_s: float | None = None,
                    frame_rate_hz: float | None = None, progress: bool = True):
-    """Load ``scenes/<name>.toml`` and simulate it (events, truth, frames, exact edges)."""
+    """Load a scene (shipped name or TOML path, see :func:`scene_path`) and simulate it (events, truth,
+    frames, exact edges)."""
     from evedge.sim import load_scene, simulate
 
-    path = scenes_dir() / f"{name}.toml"
-    if not path.exists():
-        raise FileNotFoundError(f"simulate_scene: scene file not found: {path}")
+    try:
+        path = scene_path(name)
+    except FileNotFoundError as err:
+        raise FileNotFoundError(f"simulate_scene: {err}") from None
     kwargs = {"seed": seed, "duration_s": duration_s, "progress": progress}
     if frame_rate_hz is not None:
         kwargs["frame_rate_hz"] = frame_rate_hz
@@ -87,7 +125,7 @@ def sections_us(metadata: dict, t_end_us: int) -> dict[str, tuple[int, int]]:
 def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation", quick: bool = False,
                    progress: bool = True, seed: int = 0, duration_s: float | None = None,
                    frame_rate_hz: float | None = None, max_frames: int | None = None,
-                   keep_maps: bool = False, diagnostics: bool = True, displays=DISPLAYS) -> dict:
+                   keep_maps: bool = False, diagnostics: bool = True, displays=DISPLAYS, methods_extra=()) -> dict:
     """CDM over time against Canny and exact edges, per method; box plots per section.
 
     Parameters
@@ -97,7 +135,7 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         A simulated recording with ``frames`` and ``edges``; simulated from
         ``scene`` when not given.
     scene : str
-        Scene name in ``scenes/`` (default ``shapes_translation``).
+        A shipped scene's name (default ``shapes_translation``) or a scene TOML file.
     quick : bool
         Only the first Canny setting and at most 24 frames (evenly spread).
     progress : bool
@@ -114,6 +152,9 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
     displays : sequence of str
         Display policies of the lifetime methods (default both, see
         :data:`evedge.bench.methods.DISPLAYS`); recorded in the result.
+    methods_extra : sequence of str
+        Other registered methods (or ``package.module:factory``) compared beside
+        the paper's (see :func:`evedge.bench.methods.add_method`).
 
     Returns
     -------
@@ -127,6 +168,7 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
     out_dir = Path(out_dir)
     rec = recording if recording is not None else simulate_scene(
         scene, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=progress)
+    scene = scene_label(scene)
     if rec.frames is None:
         raise ValueError("run_similarity: the recording has no grey frames")
     t_first = int(rec.events["t"][0]) if rec.events.size else 0
@@ -152,6 +194,8 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
     methods = methods_for(displays) + ACCUMULATION_METHODS
     if diagnostics:
         methods += methods_for(displays, bases=("mueggler_t0",))
+    for extra in methods_extra:
+        methods += tuple(k for k in add_method(extra) if compared(k).display in (None, *displays))
     maps, runs = edge_maps(rec.events, rec.sensor_size, times, methods=methods, count_n=count_n)
     table = cdm_table(maps, refs, progress=progress, desc=f"CDM {scene}")
     sections = sections_us(rec.metadata, t_last)
@@ -241,8 +285,8 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
     fig, axes = plt.subplots(len(refs), 1, figsize=(9, 2.6 * len(refs)), squeeze=False, sharex=True)
     for ax, ref in zip(axes[:, 0], refs):
         for m, v in table[ref].items():
-            ax.plot(np.asarray(times) / 1e6, v, marker=".", ms=3, lw=1, color=METHOD_COLOURS.get(split_key(m)[0]),
-                    ls=_line_style(m), label=METHOD_LABELS[m])
+            ax.plot(np.asarray(times) / 1e6, v, marker=".", ms=3, lw=1, color=colour(m),
+                    ls=_line_style(m), label=label(m))
         for k, (name, (a, b)) in enumerate(sections.items()):
             if name != "all":
                 ax.axvspan(a / 1e6, b / 1e6, color=("0.85", "0.7")[k % 2], alpha=0.35, lw=0)
@@ -267,14 +311,21 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
             data = [np.asarray(table[ref][m])[frame_section == name] for m in methods]
             bp = ax.boxplot(data, patch_artist=True, widths=0.6, medianprops={"color": "k"})
             for patch, m in zip(bp["boxes"], methods):
-                base, display = split_key(m)
-                patch.set_facecolor(METHOD_COLOURS.get(base, "w"))
+                display = compared(m).display
+                patch.set_facecolor(colour(m, "w"))
                 if display is not None and display != PRIMARY_DISPLAY:
                     patch.set_alpha(0.45)
                     patch.set_hatch("///")
             ax.set_xticks(range(1, len(methods) + 1), [_short(m) for m in methods], fontsize=7)
             ax.set_title(f"{name} section, vs {ref}", fontsize=9)
+            ax.set_ylabel(f"CDM vs {ref} (higher: closer)", fontsize=8)
+            ax.set_xlabel("method", fontsize=8)
             ax.set_ylim(0, 100)
+    from matplotlib.patches import Patch
+
+    shown = dict.fromkeys(compared(m).base for m in _box_order(table[refs[0]]))
+    fig.legend([Patch(facecolor=colour(b, "w"), edgecolor="k") for b in shown], [label(b) for b in shown],
+               loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=7, frameon=False)
     fig.suptitle(f"{scene}: CDM per section\nplain boxes: {DISPLAY_LABELS[PRIMARY_DISPLAY]} (primary); "
                  f"hatched ('no clear'): {', '.join(DISPLAY_LABELS[d] for d in DISPLAYS if d != PRIMARY_DISPLAY)}",
                  fontsize=9)
@@ -284,20 +335,21 @@ def _plot(out_dir: Path, scene: str, times, frame_section, sections, table) -> l
 
 
 def _line_style(key: str) -> str:
-    display = split_key(key)[1]
+    display = compared(key).display
     return "-" if display in (None, PRIMARY_DISPLAY) else "--"
 
 
 def _box_order(per_method: dict) -> list[str]:
     """Box plot order: each lifetime method's policies side by side, then the accumulation
     baselines; diagnostic variants are left out (they are in the tables)."""
-    keys = [m for m in per_method if split_key(m)[0] != "mueggler_t0"]
-    rank = {b: i for i, b in enumerate(("proposed", "mueggler") + ACCUMULATION_METHODS)}
+    keys = [m for m in per_method if not compared(m).diagnostic]
+    rank = {b: i for i, b in enumerate(dict.fromkeys(c.base for c in COMPARED.values()))}
     pol = {d: i for i, d in enumerate(DISPLAYS)}
-    return sorted(keys, key=lambda m: (rank.get(split_key(m)[0], 99), pol.get(split_key(m)[1], -1)))
+    return sorted(keys, key=lambda m: (rank.get(compared(m).base, 99), pol.get(compared(m).display, -1)))
 
 
 def _short(key: str) -> str:
-    base, display = split_key(key)
+    c = compared(key)
+    base, display = c.base, c.display
     text = base.replace("acc_", "")
     return text + ("\nno clear" if display is not None and display != PRIMARY_DISPLAY else "")

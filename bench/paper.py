@@ -18,20 +18,23 @@ import subprocess
 import sys
 import time
 import traceback
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ._files import write_json_atomic
 from .canny import CANNY_SETTINGS
+from evedge.registry import Registry
+
 from .methods import DISPLAYS, display_record
+from .results import ResultsTable
 from .verdicts import all_verdicts, display_summary
 
-EXPERIMENTS = ("ransac", "lifetime", "similarity", "qualitative", "real")
-#: Experiments that are skipped, not failed, when their recording is absent (the lifetime experiment
-#: skips its real dataset itself and still runs the simulated one).
-_READS_REAL_DATA = ("qualitative", "real")
+#: The experiment registry: name -> ``run(ctx: PaperRun) -> list of result rows``. Each experiment
+#: also fills its part of ``ctx.results`` (``results.json``) and ``ctx.figures``. Registered below,
+#: in run order (the qualitative panel last: it draws the other experiments' maps).
+EXPERIMENT_REGISTRY = Registry("experiment", kinds=("experiment",))
 
 #: Frames of the simulated sequence evaluated in quick mode (evenly spread over its 2 s).
 QUICK_MAX_FRAMES = 60
@@ -129,10 +132,146 @@ NOTES = [
 ]
 
 
+@dataclass
+class PaperRun:
+    """What an experiment of :func:`run_paper` reads and fills."""
+
+    out_dir: Path
+    quick: bool
+    progress: bool
+    seed: int
+    results: dict
+    params: dict
+    figures: dict
+    kept_maps: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
+
+
+def _ransac(ctx: PaperRun) -> list[dict]:
+    from .exp_ransac import RansacStudyParams, run_ransac_study
+    from .results import ransac_rows
+
+    rp = ctx.options.get("ransac_params") or RansacStudyParams(seed=ctx.seed, repetitions=300 if ctx.quick else 1000)
+    ctx.params["ransac"] = asdict(rp)
+    res = run_ransac_study(ctx.out_dir / "ransac", params=rp, progress=ctx.progress)
+    ctx.results["fmeasure"] = res["fmeasure"]
+    ctx.results["truth_tolerance_sensitivity"] = res["truth_tolerance_sensitivity"]
+    ctx.results["fmeasure_definitions"] = res["definitions"]
+    ctx.figures["ransac"] = res["figures"]
+    return ransac_rows(res["fmeasure"])
+
+
+def _lifetime(ctx: PaperRun) -> list[dict]:
+    from .exp_lifetime import run_lifetime
+    from .results import lifetime_rows
+
+    ctx.params["lifetime"] = {"sim_seed": ctx.seed, "sim_duration_s": "scene default",
+                              "real": "stripes.mat, whole recording"}
+    kw = {}
+    recordings = ctx.options.get("lifetime_recordings")
+    if recordings:
+        kw = {"recordings": recordings, "datasets": tuple(recordings)}
+    if ctx.options.get("data_dir") is not None:
+        kw["data_dir"] = ctx.options["data_dir"]
+    res = run_lifetime(ctx.out_dir / "lifetime", quick=ctx.quick, progress=ctx.progress, seed=ctx.seed, **kw)
+    ctx.results["lifetime"] = res["lifetime"]
+    ctx.results["lifetime_datasets"] = res["datasets"]
+    for ds, why in res["skipped"].items():
+        ctx.results["skipped"][f"lifetime/{ds}"] = why
+    ctx.figures["lifetime"] = res["figures"]
+    return lifetime_rows(res["lifetime"])
+
+
+def _similarity(ctx: PaperRun) -> list[dict]:
+    from .exp_similarity import run_similarity
+    from .results import cdm_rows
+
+    scene = ctx.options.get("scene") or "shapes_translation"
+    ctx.params["similarity"] = {
+        "scene": str(scene), "sim_seed": ctx.seed, "max_frames": QUICK_MAX_FRAMES if ctx.quick else "all (100 Hz)",
+        "canny_settings": [s.name for s in (CANNY_SETTINGS[:1] if ctx.quick else CANNY_SETTINGS)] + ["exact"]}
+    res = run_similarity(ctx.out_dir / "similarity", recording=ctx.options.get("similarity_recording"), scene=scene,
+                         quick=ctx.quick, progress=ctx.progress, seed=ctx.seed,
+                         max_frames=QUICK_MAX_FRAMES if ctx.quick else None, keep_maps=True,
+                         methods_extra=ctx.options.get("methods_extra", ()))
+    ctx.kept_maps["similarity"] = res.pop("_maps")
+    rows = []
+    for name, r in res["scenes"].items():
+        ctx.results["cdm"][name] = r["cdm"]
+        ctx.results.setdefault("cdm_diagnostics", {})[name] = r["diagnostics"]
+        ctx.results.setdefault("cdm_frames", {})[name] = {
+            k: r[k] for k in ("sections_us", "frame_t_us", "frame_section", "count_n", "n_events")}
+        ctx.params["similarity"]["count_n"] = r["count_n"]
+        rows += cdm_rows("similarity", name, r["cdm"])
+    ctx.figures["similarity"] = res["figures"]
+    return rows
+
+
+def _real(ctx: PaperRun) -> list[dict]:
+    from .exp_real import run_real
+    from .results import real_rows
+
+    res = run_real(ctx.out_dir / "real", path=ctx.options.get("real_path"), quick=False, progress=ctx.progress,
+                   keep_maps=True, methods_extra=ctx.options.get("methods_extra", ()),
+                   data_dir=ctx.options.get("data_dir"))
+    ctx.kept_maps["real"] = res.pop("_maps")
+    rows = []
+    for rec, r in res["recordings"].items():
+        ctx.results["real"][rec] = {
+            m: {"cdm_per_frame": {ref: r["cdm"][ref][m] for ref in r["cdm"]},
+                "median": {ref: r["summary"][ref][m]["median"] for ref in r["cdm"]}}
+            for m in next(iter(r["cdm"].values()))}
+        ctx.results.setdefault("real_frames", {})[rec] = {
+            "frame_t_us": r["frame_t_us"], "frame_index": r["frame_index"], "count_n": r["count_n"],
+            "source": r["source"]}
+        rows += real_rows(rec, ctx.results["real"][rec])
+    ctx.figures["real"] = res["figures"]
+    return rows
+
+
+def _qualitative(ctx: PaperRun) -> list[dict]:
+    from .exp_qualitative import rows_from_maps, run_qualitative
+
+    rows = []
+    sim = ctx.kept_maps.get("similarity")
+    if sim is not None:
+        sec = np.asarray(sim["frame_section"], dtype=object)
+        for label in ("slow", "fast"):
+            hit = np.flatnonzero(sec == label)
+            if hit.size:
+                rows += rows_from_maps(f"sim {label}", sim, [int(hit[hit.size // 2])])
+        if not rows:
+            rows += rows_from_maps("sim", sim, [len(sim["times"]) // 2])
+    real = ctx.kept_maps.get("real")
+    if real is not None:
+        rows += rows_from_maps("slider_depth", real, [len(real["times"]) // 2])
+    res = run_qualitative(ctx.out_dir / "qualitative", rows=rows or None, progress=ctx.progress,
+                          data_dir=ctx.options.get("data_dir"))
+    ctx.figures["qualitative"] = res["figures"]
+    ctx.results["qualitative"] = {k: res[k] for k in ("rows", "edge_pixels")}
+    return []
+
+
+EXPERIMENT_REGISTRY.register("ransac", _ransac, kind="experiment", display_name="RANSAC study (fig. 7)")
+EXPERIMENT_REGISTRY.register("lifetime", _lifetime, kind="experiment", display_name="lifetimes on stripes (figs. 4-5)")
+EXPERIMENT_REGISTRY.register("similarity", _similarity, kind="experiment", display_name="CDM over time (fig. 9)",
+                             scene_based=True)
+EXPERIMENT_REGISTRY.register("real", _real, kind="experiment", display_name="real frames vs Canny", reads_real=True)
+EXPERIMENT_REGISTRY.register("qualitative", _qualitative, kind="experiment", display_name="qualitative panel",
+                             reads_real=True)
+
+#: The experiments, in run order.
+EXPERIMENTS = EXPERIMENT_REGISTRY.names()
+#: Experiments that are skipped, not failed, when their recording is absent (the lifetime experiment
+#: skips its real dataset itself and still runs the simulated one).
+_READS_REAL_DATA = tuple(e.name for e in EXPERIMENT_REGISTRY.entries() if e.metadata.get("reads_real"))
+
+
 def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int = 0,
               experiments=EXPERIMENTS, command: str = "evedge bench paper", ransac_params=None,
-              similarity_recording=None, lifetime_recordings: dict | None = None, real_path=None) -> dict:
-    """Run the experiments and write ``OUT/results.json`` and ``OUT/report.html``.
+              similarity_recording=None, lifetime_recordings: dict | None = None, real_path=None,
+              methods_extra=(), scene=None, data_dir=None) -> dict:
+    """Run the experiments and write ``OUT/results.json``, ``OUT/results.csv|h5`` and ``OUT/report.html``.
 
     Parameters
     ----------
@@ -144,31 +283,35 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     seed : int
         Seed of the simulations and of the RANSAC study.
     experiments : sequence of str
-        Subset of :data:`EXPERIMENTS`.
+        Subset of :data:`EXPERIMENTS` (registered in :data:`EXPERIMENT_REGISTRY`).
     command : str
         Shown in the report.
     ransac_params : RansacStudyParams, optional
         Overrides the study's size (default 1000 windows per point, quick 300).
     similarity_recording : Recording, optional
-        Used instead of simulating ``shapes_translation``.
+        Used instead of simulating the scene.
     lifetime_recordings : dict, optional
         ``{"stripes_real": Recording, "stripes_sim": Recording}`` (either or both)
         used instead of reading / simulating; only the given ones are run.
     real_path : path, optional
         Recording with frames instead of ``slider_depth``.
+    methods_extra : sequence of str
+        Other registered methods (plug-ins, ``package.module:factory``) compared
+        beside the paper's in the scene-based and real-frame experiments.
+    scene : str or path, optional
+        Scene of the similarity experiment: a shipped scene's name or a TOML file
+        (default ``shapes_translation``).
+    data_dir : path, optional
+        Folder of the real recordings (default: ``EVEDGE_DATA``, else ``../shared/realdata``).
 
     Returns
     -------
     dict
-        The results written to ``results.json`` plus ``"report"`` (its path).
+        The results written to ``results.json`` plus ``"report"`` (its path)
+        and ``"table"`` (the long :class:`~evedge.bench.results.ResultsTable`).
     """
     from tqdm.auto import tqdm
 
-    from .exp_lifetime import run_lifetime
-    from .exp_qualitative import rows_from_maps, run_qualitative
-    from .exp_ransac import RansacStudyParams, run_ransac_study
-    from .exp_real import run_real
-    from .exp_similarity import run_similarity
     from .report import write_report
 
     unknown = [e for e in experiments if e not in EXPERIMENTS]
@@ -182,7 +325,13 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     timing: dict[str, float] = {}
     params: dict = {"seed": seed, "quick": quick, "canny_settings": [s.as_dict() for s in CANNY_SETTINGS],
                     "detector": _detector_params(), "display": display_record(DISPLAYS)}
-    kept_maps: dict = {}
+    if methods_extra:
+        params["methods_extra"] = list(methods_extra)
+    ctx = PaperRun(out_dir, quick, progress, seed, results, params, figures,
+                   options={"ransac_params": ransac_params, "similarity_recording": similarity_recording,
+                            "lifetime_recordings": lifetime_recordings, "real_path": real_path,
+                            "methods_extra": tuple(methods_extra), "scene": scene, "data_dir": data_dir})
+    table = ResultsTable()
 
     def attempt(name, fn):
         t0 = time.perf_counter()
@@ -209,85 +358,10 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     bar = tqdm(stages, desc="experiments", unit="exp", disable=not progress)
     for name in bar:
         bar.set_postfix_str(name)
-        sub = out_dir / name
-        if name == "ransac":
-            rp = ransac_params or RansacStudyParams(seed=seed, repetitions=300 if quick else 1000)
-            params["ransac"] = asdict(rp)
-            res = attempt(name, lambda: run_ransac_study(sub, params=rp, progress=progress))
-            if res:
-                results["fmeasure"] = res["fmeasure"]
-                results["truth_tolerance_sensitivity"] = res["truth_tolerance_sensitivity"]
-                results["fmeasure_definitions"] = res["definitions"]
-                figures[name] = res["figures"]
-        elif name == "lifetime":
-            params["lifetime"] = {"sim_seed": seed, "sim_duration_s": "scene default",
-                                  "real": "stripes.mat, whole recording"}
-            kw = {}
-            if lifetime_recordings:
-                kw = {"recordings": lifetime_recordings, "datasets": tuple(lifetime_recordings)}
-            res = attempt(name, lambda: run_lifetime(sub, quick=quick, progress=progress, seed=seed, **kw))
-            if res:
-                results["lifetime"] = res["lifetime"]
-                results["lifetime_datasets"] = res["datasets"]
-                for ds, why in res["skipped"].items():
-                    results["skipped"][f"lifetime/{ds}"] = why
-                figures[name] = res["figures"]
-        elif name == "similarity":
-            params["similarity"] = {"scene": "shapes_translation", "sim_seed": seed,
-                                    "max_frames": QUICK_MAX_FRAMES if quick else "all (100 Hz)",
-                                    "canny_settings": [s.name for s in (CANNY_SETTINGS[:1] if quick else CANNY_SETTINGS)]
-                                    + ["exact"]}
-            res = attempt(name, lambda: run_similarity(sub, recording=similarity_recording, quick=quick,
-                                                       progress=progress, seed=seed,
-                                                       max_frames=QUICK_MAX_FRAMES if quick else None,
-                                                       keep_maps=True))
-            if res:
-                kept_maps["similarity"] = res.pop("_maps")
-                for scene, r in res["scenes"].items():
-                    results["cdm"][scene] = r["cdm"]
-                    results.setdefault("cdm_diagnostics", {})[scene] = r["diagnostics"]
-                    results.setdefault("cdm_frames", {})[scene] = {
-                        k: r[k] for k in ("sections_us", "frame_t_us", "frame_section", "count_n", "n_events")}
-                    params["similarity"]["count_n"] = r["count_n"]
-                figures[name] = res["figures"]
-        elif name == "real":
-            res = attempt(name, lambda: run_real(sub, path=real_path, quick=False, progress=progress,
-                                                 keep_maps=True))
-            if res:
-                kept_maps["real"] = res.pop("_maps")
-                for rec, r in res["recordings"].items():
-                    results["real"][rec] = {
-                        m: {"cdm_per_frame": {ref: r["cdm"][ref][m] for ref in r["cdm"]},
-                            "median": {ref: r["summary"][ref][m]["median"] for ref in r["cdm"]}}
-                        for m in next(iter(r["cdm"].values()))}
-                    results.setdefault("real_frames", {})[rec] = {
-                        "frame_t_us": r["frame_t_us"], "frame_index": r["frame_index"], "count_n": r["count_n"],
-                        "source": r["source"]}
-                figures[name] = res["figures"]
-        elif name == "qualitative":
-            continue  # drawn last, from the other experiments' maps
+        rows = attempt(name, lambda name=name: EXPERIMENT_REGISTRY.get(name).factory(ctx))
+        if rows:
+            table.extend(rows, experiment=name)
     bar.close()
-    if "qualitative" in experiments:
-        def panel():
-            rows = []
-            sim = kept_maps.get("similarity")
-            if sim is not None:
-                sec = np.asarray(sim["frame_section"], dtype=object)
-                for label in ("slow", "fast"):
-                    hit = np.flatnonzero(sec == label)
-                    if hit.size:
-                        rows += rows_from_maps(f"sim {label}", sim, [int(hit[hit.size // 2])])
-                if not rows:
-                    rows += rows_from_maps("sim", sim, [len(sim["times"]) // 2])
-            real = kept_maps.get("real")
-            if real is not None:
-                rows += rows_from_maps("slider_depth", real, [len(real["times"]) // 2])
-            return run_qualitative(out_dir / "qualitative", rows=rows or None, progress=progress)
-
-        res = attempt("qualitative", panel)
-        if res:
-            figures["qualitative"] = res["figures"]
-            results["qualitative"] = {k: res[k] for k in ("rows", "edge_pixels")}
     results["verdicts"] = all_verdicts(results)
     results["display"] = dict(display_record(DISPLAYS), summary=display_summary(results["verdicts"]))
     wall = time.perf_counter() - t_start
@@ -300,6 +374,8 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     notes = (list(NOTES) + [f"Experiment {k} FAILED: {v}" for k, v in results["errors"].items()]
              + [f"Skipped {k}: {v}" for k, v in results["skipped"].items()])
     write_json_atomic(out_dir / "results.json", results)
-    report = write_report(out_dir / "report.html", results, figures=figures, notes=notes)
+    table.save(out_dir / "results")
+    report = write_report(out_dir / "report.html", results, figures=figures, notes=notes, table=table)
     results["report"] = str(report)
+    results["table"] = table
     return results

@@ -56,7 +56,7 @@ def neighbour_delays(events: np.ndarray, sensor_size) -> np.ndarray:
     """
     from evedge.events import validate_events
 
-    validate_events(events, sensor_size, name="neighbour_delays: events")
+    events = validate_events(events, sensor_size, name="neighbour_delays: events")
     n = events.size
     out = np.full(n, np.nan)
     if n == 0:

@@ -1,5 +1,8 @@
 """One self-contained HTML page from the results: figures inlined as base64 PNG.
 
+The page is the Jinja2 template ``bench/templates/report.html.j2``; the helpers here only format
+tables of numbers computed elsewhere (results, verdicts).
+
 The page carries the verdicts on the paper's claims (computed in
 :mod:`evedge.bench.verdicts`), tables of the headline numbers, every
 parameter, the versions of the software and the date.
@@ -14,21 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ._files import write_text_atomic
-from .methods import METHOD_LABELS
-
-_CSS = """
-body{font-family:system-ui,sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222}
-h1{font-size:1.5em} h2{border-bottom:1px solid #ccc;margin-top:1.6em} h3{font-size:1.05em}
-table{border-collapse:collapse;margin:0.5em 0;font-size:0.85em}
-td,th{border:1px solid #ccc;padding:2px 6px;text-align:right} th{background:#f3f3f3}
-td.l,th.l{text-align:left}
-.holds{background:#dff5df} .fails{background:#fadddd} .nc{background:#eee}
-img{max-width:100%;border:1px solid #eee;margin:0.3em 0}
-pre{background:#f7f7f7;padding:0.5em;font-size:0.8em;overflow-x:auto}
-.small{font-size:0.85em;color:#555}
-.row{display:flex;gap:0.5em;align-items:flex-start} .row>div{flex:1 1 0;min-width:0}
-"""
-
+from .methods import label as method_label
 
 def _e(x) -> str:
     return html.escape(str(x))
@@ -82,41 +71,16 @@ def _verdict_section(verdicts: list[dict]) -> str:
                    + "".join(rows_html) + "</table>")
 
 
-def _float_or_nan(x) -> float:
-    return float("nan") if x is None else float(x)  # results.json stores NaN as null
-
-
-def _median_pairs(results: dict):
-    """For every scene/truth/section and real recording/reference: result key -> median CDM."""
-    for per_truth in (results.get("cdm") or {}).values():
-        for per in per_truth.values():
-            for section in ("slow", "fast"):
-                yield {k: _float_or_nan((v.get(section) or {}).get("median")) for k, v in per.items()}
-    for per in (results.get("real") or {}).values():
-        refs = sorted({ref for v in per.values() for ref in (v.get("median") or {})})
-        for ref in refs:
-            yield {k: _float_or_nan((v.get("median") or {}).get(ref)) for k, v in per.items()}
-
-
 def _policy_effect_text(results: dict) -> str:
-    """How far the display policy and the estimator move the median CDM in this run (computed, not asserted)."""
-    from .methods import DISPLAYS, method_key
+    """The display policy's and the estimator's effect on the median CDM (numbers from verdicts.policy_effect)."""
+    from .verdicts import policy_effect
 
-    policy, estimator = [], []
-    for med in _median_pairs(results):
-        for base in ("proposed", "mueggler"):
-            a, b = (med.get(method_key(base, d), np.nan) for d in DISPLAYS[:2])
-            if np.isfinite(a) and np.isfinite(b):
-                policy.append(abs(a - b))
-        for d in DISPLAYS:
-            a, b = med.get(method_key("proposed", d), np.nan), med.get(method_key("mueggler", d), np.nan)
-            if np.isfinite(a) and np.isfinite(b):
-                estimator.append(abs(a - b))
-    if not policy or not estimator:
+    e = policy_effect(results)
+    if e is None:
         return ""
     return (f" (in this run, switching the policy moves a lifetime method's median CDM by up to "
-            f"{max(policy):.1f} points, median {np.median(policy):.1f}; switching the estimator, proposed vs "
-            f"Mueggler under one policy, by up to {max(estimator):.1f}, median {np.median(estimator):.1f})")
+            f"{e['policy_max']:.1f} points, median {e['policy_median']:.1f}; switching the estimator, proposed vs "
+            f"Mueggler under one policy, by up to {e['estimator_max']:.1f}, median {e['estimator_median']:.1f})")
 
 
 def _display_headline(results: dict) -> str:
@@ -195,7 +159,7 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
             stxt = "; ".join(f"{p['mode'] / 1e3:.2f} ms {p['kind']} (FWHM-eq {p['fwhm_log10']:.3f} dec, "
                              f"{100 * p['fraction']:.0f}%)" for p in res.get("shoulder_peaks") or [])
             share = res.get("share_estimated")
-            rows.append([_e(ds), _e(METHOD_LABELS.get(m, m)), _num(res.get("median_lifetime_us", np.nan) / 1e3
+            rows.append([_e(ds), _e(method_label(m)), _num(res.get("median_lifetime_us", np.nan) / 1e3
                                                                   if res.get("median_lifetime_us") is not None
                                                                   else None, 2),
                          _num(None if share is None else 100 * share, 1),
@@ -225,9 +189,9 @@ def _lifetime_section(lt: dict, datasets: dict) -> str:
     for ds, per in lt.items():
         items = []
         for m, res in per.items():
-            items += [(reg, METHOD_LABELS.get(m, m), q) for reg, q in (res.get("regions") or {}).items()]
+            items += [(reg, method_label(m), q) for reg, q in (res.get("regions") or {}).items()]
             diag = (res.get("on_buffered_events") or {}).get("regions") or {}
-            items += [(reg, f"{METHOD_LABELS.get(m, m)} on the event buffer's output (diagnostic)", q)
+            items += [(reg, f"{method_label(m)} on the event buffer's output (diagnostic)", q)
                       for reg, q in diag.items()]
         for reg, label, q in items:
             rrows.append([_e(ds), _e(reg), _e(label), _e(q["n_events"]),
@@ -256,7 +220,7 @@ def _cdm_section(cdm: dict) -> str:
             for m, res in per_method.items():
                 cells = [f"{_num(res[s]['median'], 1)} [{_num(res[s]['q1'], 1)}, {_num(res[s]['q3'], 1)}] "
                          f"({res[s]['n']})" for s in sections]
-                rows.append([_e(METHOD_LABELS.get(m, m))] + cells + [_num(res["all"]["median"], 1)])
+                rows.append([_e(method_label(m))] + cells + [_num(res["all"]["median"], 1)])
             parts.append(f"<h3>{_e(scene)} vs {_e(truth)}</h3>" + _table(header, rows))
     return "".join(parts)
 
@@ -266,7 +230,7 @@ def _diagnostics_section(diag: dict) -> str:
     for scene, d in diag.items():
         for ref, per in (d.get("pixel_ratio") or {}).items():
             sections = [s for s in next(iter(per.values()))]
-            rows = [[_e(METHOD_LABELS.get(m, m))] + [_num(v.get(s), 2) for s in sections] for m, v in per.items()]
+            rows = [[_e(method_label(m))] + [_num(v.get(s), 2) for s in sections] for m, v in per.items()]
             parts.append(f"<h3>{_e(scene)}: edge pixels per pixel of {_e(ref)} (mean per section)</h3>"
                          + _table(["method"] + sections, rows))
         lt = d.get("lifetime") or {}
@@ -274,7 +238,7 @@ def _diagnostics_section(diag: dict) -> str:
             rows = []
             for m, per in lt.items():
                 for s, v in per.items():
-                    rows.append([_e(METHOD_LABELS.get(m, m)), _e(s), _e(v["n_signal"]), _num(100 * v["coverage"], 1),
+                    rows.append([_e(method_label(m)), _e(s), _e(v["n_signal"]), _num(100 * v["coverage"], 1),
                                  _num(v["median_rel_error"], 3), _num(100 * v["over_2x"], 1),
                                  _num(100 * v["under_2x"], 1)])
             parts.append(f"<h3>{_e(scene)}: lifetimes against the simulator's truth</h3>"
@@ -290,7 +254,7 @@ def _real_section(real: dict, frames: dict) -> str:
         refs = list(next(iter(per_method.values()))["cdm_per_frame"])
         for ref in refs:
             header = ["method"] + [f"t={float(x) / 1e3:.1f} ms" for x in t] + ["median"]
-            rows = [[_e(METHOD_LABELS.get(m, m))] + [_num(v, 1) for v in res["cdm_per_frame"][ref]]
+            rows = [[_e(method_label(m))] + [_num(v, 1) for v in res["cdm_per_frame"][ref]]
                     + [_num(res["median"][ref], 1)] for m, res in per_method.items()]
             parts.append(f"<h3>{_e(rec)} vs {_e(ref)}</h3>" + _table(header, rows))
     return "".join(parts)
@@ -304,8 +268,8 @@ def _dict_block(d) -> str:
     return f"<pre>{_e(json.dumps(to_jsonable(d), indent=1))}</pre>"
 
 
-def write_report(path, results: dict, *, figures: dict[str, list], notes: list[str]) -> Path:
-    """Write the HTML report.
+def write_report(path, results: dict, *, figures: dict[str, list], notes: list[str], table=None) -> Path:
+    """Write the HTML report (rendered through ``bench/templates/report.html.j2``).
 
     Parameters
     ----------
@@ -318,61 +282,48 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
         Experiment -> list of PNG paths (inlined).
     notes : list of str
         Caveats and definitions shown at the end.
+    table : ResultsTable, optional
+        The long results table; the report opens with its leaderboard.
     """
-    run = results.get("run", {})
-    h = [f"<!doctype html><html><head><meta charset='utf-8'><title>evedge report</title>"
-         f"<style>{_CSS}</style></head><body>",
-         "<h1>evedge: Edge Detection for Event Cameras using Intra-pixel-area Events "
-         "(Lee, Kim &amp; Kim, BMVC 2019) &mdash; reproduction report</h1>",
-         f"<p class='small'>Generated {_e(run.get('date_utc', ''))} by <code>{_e(run.get('command', ''))}</code>"
-         f" in {_num(run.get('wall_time_s'), 1)} s; mode: {'quick' if run.get('quick') else 'full'}. "
-         f"Versions: {_e(', '.join(f'{k} {v}' for k, v in run.get('versions', {}).items()))}. "
-         "Reproduce: <code>evedge demo</code> (quick) or <code>evedge bench paper -o OUT</code> (full); "
-         "numbers: <code>results.json</code> beside this page, per-experiment CSV/JSON/PNG in its "
-         "sub-directories.</p>",
-         "<h2>Do the paper's claims hold?</h2>", _display_headline(results),
-         _verdict_section(results.get("verdicts", []))]
-    if results.get("skipped"):
-        h.insert(-2, "<div class='nc'><b>Skipped (input data absent):</b><ul>"
-                 + "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in results["skipped"].items()) + "</ul></div>")
-    if results.get("errors"):
-        h.insert(-2, "<div class='fails'><b>Experiments that failed in this run:</b><ul>"
-                 + "".join(f"<li>{_e(k)}: {_e(v)}</li>" for k, v in results["errors"].items()) + "</ul></div>")
+    from markupsafe import Markup
+
+    from .report_render import environment
+    from .results import ResultsTable, leaderboard
+    from .verdicts import claim_lines
+
+    board = leaderboard(table if table is not None else ResultsTable())
+    sections = []
     if results.get("fmeasure"):
-        h += ["<h2>1. RANSAC inlier decision and lifetime error (paper fig. 7)</h2>",
-              "<p class='small'>F-measure of RANSAC's final inliers against the true inliers among the points "
-              "it is given; mean relative lifetime error of successful fits; x-axis: timestamp noise std in "
-              "units of the true lifetime.</p>"]
-        h += [_img(p) for p in figures.get("ransac", [])]
-        h.append(_fmeasure_section(results["fmeasure"]))
+        sections.append(("1. RANSAC inlier decision and lifetime error (paper fig. 7)",
+                         "F-measure of RANSAC's final inliers against the true inliers among the points it is given; "
+                         "mean relative lifetime error of successful fits; x-axis: timestamp noise std in units of "
+                         "the true lifetime.", figures.get("ransac", []), Markup(_fmeasure_section(results["fmeasure"]))))
     if results.get("lifetime"):
-        h += ["<h2>2. Lifetimes on stripes (paper figs. 4-5)</h2>"]
-        h.append(_lifetime_figures(figures.get("lifetime", [])))
-        h.append(_lifetime_section(results["lifetime"], results.get("lifetime_datasets", {})))
+        sections.append(("2. Lifetimes on stripes (paper figs. 4-5)", "", [],
+                         Markup(_lifetime_figures(figures.get("lifetime", []))
+                                + _lifetime_section(results["lifetime"], results.get("lifetime_datasets", {})))))
     if results.get("cdm"):
-        h += ["<h2>3. Similarity over time, slow then fast (paper fig. 9)</h2>",
-              "<p class='small'>Lifetime methods under both display policies: solid lines and plain boxes, "
-              "predecessor display (primary); dashed lines and hatched boxes ('no clear'), lifetime-only "
-              "display.</p>"]
-        h += [_img(p) for p in figures.get("similarity", [])]
-        h.append(_cdm_section(results["cdm"]))
+        body = _cdm_section(results["cdm"])
         if results.get("cdm_diagnostics"):
-            h += ["<p class='small'>Diagnostics (explain the CDM; not used to rank methods):</p>",
-                  _diagnostics_section(results["cdm_diagnostics"])]
+            body += ("<p class='small'>Diagnostics (explain the CDM; not used to rank methods):</p>"
+                     + _diagnostics_section(results["cdm_diagnostics"]))
+        sections.append(("3. Similarity over time, slow then fast (paper fig. 9)",
+                         "Lifetime methods under both display policies: solid lines and plain boxes, predecessor "
+                         "display (primary); dashed lines and hatched boxes ('no clear'), lifetime-only display.",
+                         figures.get("similarity", []), Markup(body)))
     if figures.get("qualitative"):
-        h += ["<h2>4. Qualitative panel (paper figs. 1, 8)</h2>",
-              "<p class='small'>Both lifetime methods shown with the primary display policy (predecessor "
-              "display: the pixel behind each event cleared).</p>"]
-        h += [_img(p) for p in figures["qualitative"]]
+        sections.append(("4. Qualitative panel (paper figs. 1, 8)",
+                         "Both lifetime methods shown with the primary display policy (predecessor display: the "
+                         "pixel behind each event cleared).", figures["qualitative"], Markup("")))
     if results.get("real"):
-        h += ["<h2>5. Real frames (slider_depth): CDM against Canny</h2>",
-              "<p class='small'>The figure shows the lifetime methods with the primary display policy "
-              "(predecessor display); the tables below list both policies.</p>"]
-        h += [_img(p) for p in figures.get("real", [])]
-        h.append(_real_section(results["real"], results.get("real_frames", {})))
-    h += ["<h2>Definitions, caveats and parameters</h2>",
-          "<ul>" + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>",
-          "<h3>Parameters</h3>", _dict_block(results.get("params", {})),
-          "<h3>Timing (s)</h3>", _dict_block(run.get("timing_s", {})),
-          "</body></html>"]
-    return write_text_atomic(path, "\n".join(h))
+        sections.append(("5. Real frames (slider_depth): CDM against Canny",
+                         "The figure shows the lifetime methods with the primary display policy (predecessor "
+                         "display); the tables below list both policies.", figures.get("real", []),
+                         Markup(_real_section(results["real"], results.get("real_frames", {})))))
+    html_text = environment().get_template("report.html.j2").render(
+        run=results.get("run", {}), board=board, claims=claim_lines(results.get("verdicts", [])),
+        display_headline=Markup(_display_headline(results)),
+        verdict_table=Markup(_verdict_section(results.get("verdicts", []))),
+        skipped=results.get("skipped") or {}, errors=results.get("errors") or {}, sections=sections, notes=notes,
+        params=Markup(_dict_block(results.get("params", {}))), timing=Markup(_dict_block(results.get("run", {}).get("timing_s", {}))))
+    return write_text_atomic(path, html_text)

@@ -480,3 +480,68 @@ def all_verdicts(results: dict) -> list[dict]:
             + intra_verdicts(results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity"))
             + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
             + real_verdicts(results.get("real") or {}))
+
+
+def claim_lines(verdicts: list[dict]) -> list[dict]:
+    """One line per paper claim: its checks (per scene, truth, display) grouped, with the numbers.
+
+    A claim *holds* when every checked instance holds, *fails* when any fails
+    (``not checked`` when none was checked). Returns dicts ``claim``,
+    ``status``, ``n_holds``, ``n_fails``, ``n_checks``, ``where_fails`` (the
+    bracketed contexts that fail) and ``evidence`` (of the first failing check,
+    else of the first check).
+    """
+    groups: dict[str, list[dict]] = {}
+    for v in verdicts:
+        text = v["claim"]
+        where, claim = "", text
+        if text.startswith("[") and "]" in text:
+            where, claim = text[1:text.index("]")], text[text.index("]") + 1:].strip()
+        groups.setdefault(claim, []).append(dict(v, where=where))
+    out = []
+    for claim, vs in groups.items():
+        fails = [v for v in vs if v["status"] == "fails"]
+        holds = [v for v in vs if v["status"] == "holds"]
+        status = "fails" if fails else ("holds" if holds else "not checked")
+        first = (fails or holds or vs)[0]
+        out.append({"claim": claim, "status": status, "n_holds": len(holds), "n_fails": len(fails),
+                    "n_checks": len(holds) + len(fails), "where_fails": [v["where"] for v in fails],
+                    "where_first": first["where"], "evidence": first["evidence"]})
+    return out
+
+
+def policy_effect(results: dict) -> dict | None:
+    """How far the display policy and the estimator move the median CDM in this run (computed, not asserted).
+
+    Over every scene/truth/section (slow, fast) and real recording/reference:
+    ``policy``: |median under one policy - under the other| per lifetime method;
+    ``estimator``: |proposed - Mueggler| under one policy. Max and median of each; None without both.
+    """
+    from .methods import method_key
+
+    def medians():
+        for per_truth in (results.get("cdm") or {}).values():
+            for per in per_truth.values():
+                for section in ("slow", "fast"):
+                    yield {k: np.nan if (v.get(section) or {}).get("median") is None
+                           else float(v[section]["median"]) for k, v in per.items()}
+        for per in (results.get("real") or {}).values():
+            refs = sorted({ref for v in per.values() for ref in (v.get("median") or {})})
+            for ref in refs:
+                yield {k: np.nan if (v.get("median") or {}).get(ref) is None else float(v["median"][ref])
+                       for k, v in per.items()}
+
+    policy, estimator = [], []
+    for med in medians():
+        for base in ("proposed", "mueggler"):
+            a, b = (med.get(method_key(base, d), np.nan) for d in DISPLAYS[:2])
+            if np.isfinite(a) and np.isfinite(b):
+                policy.append(abs(a - b))
+        for d in DISPLAYS:
+            a, b = med.get(method_key("proposed", d), np.nan), med.get(method_key("mueggler", d), np.nan)
+            if np.isfinite(a) and np.isfinite(b):
+                estimator.append(abs(a - b))
+    if not policy or not estimator:
+        return None
+    return {"policy_max": max(policy), "policy_median": float(np.median(policy)),
+            "estimator_max": max(estimator), "estimator_median": float(np.median(estimator))}

@@ -24,7 +24,11 @@ def check_sensor_size(sensor_size, name: str = "sensor_size") -> SensorSize:
 
 
 def check_events(events, sensor_size: SensorSize, name: str = "events") -> np.ndarray:
-    """Validate dtype, range and time order; return the events."""
+    """Convert to the event dtype (losslessly, :func:`evedge.events.as_events`), check range and order.
+
+    The detector's one validation point: callers must use the returned array,
+    which is ``events`` itself when it already has :data:`~evedge.events.EVENT_DTYPE`.
+    """
     return validate_events(events, sensor_size, name=name)
 
 

@@ -28,6 +28,8 @@ import numpy as np
 
 from evedge.events import SensorSize, find_time_decrease, validate_events
 
+from .protocols import METHODS
+
 __all__ = [
     "accumulate_time",
     "accumulate_count",
@@ -73,12 +75,12 @@ def _check_query_time(name: str, value) -> int:
     return int(value)
 
 
-def _check_one_shot(events, sensor_size, times_us, size_name: str, size) -> tuple[SensorSize, int, np.ndarray]:
-    """Checks shared by the one-shot functions: sensor, events, the window size ``size_name``, query times."""
+def _check_one_shot(events, sensor_size, times_us, size_name: str, size) -> tuple[np.ndarray, SensorSize, int, np.ndarray]:
+    """Checks shared by the one-shot functions: events (converted), sensor, the window size ``size_name``, query times."""
     sensor_size = _check_sensor(sensor_size)
-    validate_events(events, sensor_size, name="events")
+    events = validate_events(events, sensor_size, name="events")
     size = _check_positive_int(size_name, size)
-    return sensor_size, size, _check_times(times_us)
+    return events, sensor_size, size, _check_times(times_us)
 
 
 def accumulate_time(events: np.ndarray, sensor_size: SensorSize, times_us, window_us: int) -> np.ndarray:
@@ -100,7 +102,7 @@ def accumulate_time(events: np.ndarray, sensor_size: SensorSize, times_us, windo
         Boolean, shape ``(n, height, width)``: pixel on at ``T`` when an event
         fell on it with ``T - window_us < t <= T``.
     """
-    sensor_size, window_us, times = _check_one_shot(events, sensor_size, times_us, "window_us", window_us)
+    events, sensor_size, window_us, times = _check_one_shot(events, sensor_size, times_us, "window_us", window_us)
     t = events["t"]
     lo = np.searchsorted(t, times - window_us, side="right")
     hi = np.searchsorted(t, times, side="right")
@@ -127,7 +129,7 @@ def accumulate_count(events: np.ndarray, sensor_size: SensorSize, times_us, n_ev
         last ``n_events`` events with ``t <= T`` fell on it (all of them when
         fewer exist).
     """
-    sensor_size, n_events, times = _check_one_shot(events, sensor_size, times_us, "n_events", n_events)
+    events, sensor_size, n_events, times = _check_one_shot(events, sensor_size, times_us, "n_events", n_events)
     hi = np.searchsorted(events["t"], times, side="right")
     lo = np.maximum(hi - n_events, 0)
     return _images_from_ranges(events, sensor_size, lo, hi)
@@ -150,7 +152,7 @@ class _Streaming:
         self._last_t: int | None = None
 
     def _accept(self, chunk: np.ndarray) -> np.ndarray:
-        validate_events(chunk, self.sensor_size, name="chunk")
+        chunk = validate_events(chunk, self.sensor_size, name="chunk")
         if chunk.size:
             if self._last_t is not None and chunk["t"][0] < self._last_t:
                 raise ValueError(
@@ -247,3 +249,29 @@ class CountWindowAccumulator(_Streaming):
         image = np.zeros(self.sensor_size.shape, dtype=bool)
         image[self._y, self._x] = True
         return image
+
+
+def _time_registered(sensor_size, *, window_us: int = 30_000) -> TimeWindowAccumulator:
+    """Factory of the method registry: ``TimeWindowAccumulator(sensor_size, window_us)``."""
+    return TimeWindowAccumulator(sensor_size, window_us)
+
+
+def _count_registered(sensor_size, *, n_events: int = 2000) -> CountWindowAccumulator:
+    """Factory of the method registry: ``CountWindowAccumulator(sensor_size, n_events)``."""
+    return CountWindowAccumulator(sensor_size, n_events)
+
+
+def _time_frames(events, sensor_size, times_us, *, window_us: int = 30_000) -> np.ndarray:
+    """One-shot frames of the registry entry ``time``: :func:`accumulate_time`."""
+    return accumulate_time(events, sensor_size, times_us, window_us)
+
+
+def _count_frames(events, sensor_size, times_us, *, n_events: int = 2000) -> np.ndarray:
+    """One-shot frames of the registry entry ``count``: :func:`accumulate_count`."""
+    return accumulate_count(events, sensor_size, times_us, n_events)
+
+
+METHODS.register("time", _time_registered, kind="edges", display_name="fixed-time accumulation", colour="#2ca02c",
+                 frames=_time_frames)
+METHODS.register("count", _count_registered, kind="edges", display_name="fixed-count accumulation",
+                 colour="#7f7f7f", frames=_count_frames)

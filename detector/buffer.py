@@ -36,6 +36,7 @@ from evedge.events import EVENT_DTYPE
 
 from ._buffer_kernels import _buffer_scan, _n_decided
 from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
+from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
 
@@ -112,7 +113,7 @@ class EventBuffer:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Take a time-sorted chunk; return the kept events whose fate is now known."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         if events.size == 0:
             return events[:0].copy()
@@ -181,7 +182,7 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     """
     sensor_size = check_sensor_size(sensor_size)
     params = _check_params(params)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     w, h = sensor_size.width, sensor_size.height
     x, y, t, p = columns(events)
     n = events.shape[0]
@@ -190,3 +191,17 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
                  np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
                  np.full(2 * w * h, -1, dtype=np.int64), w, h, params.tau_min_us, params.mode == "causal")
     return supported
+
+
+def _registered(sensor_size, **params) -> EventBuffer:
+    """Factory of the method registry: ``EventBuffer(sensor_size, BufferParams(**params))``."""
+    return EventBuffer(sensor_size, BufferParams(**params))
+
+
+def _keep_mask(events: np.ndarray, sensor_size, **params) -> np.ndarray:
+    """One-shot keep mask of the registry entry: :func:`filter_events`."""
+    return filter_events(events, sensor_size, BufferParams(**params))
+
+
+METHODS.register("buffer", _registered, kind="filter", display_name="event buffer (noise filter)", colour="#8c564b",
+                 params=BufferParams, keep_mask=_keep_mask)

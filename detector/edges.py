@@ -26,9 +26,25 @@ import numpy as np
 from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_sensor_size, columns
 from ._edges_kernels import _DX, _DY, _edge_update
 
-__all__ = ["EdgeImage", "edge_frames"]
+__all__ = ["DISPLAYS", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind", "edge_frames"]
 
 _INVALID = ("ignore", "clear")
+
+#: Display policies: how an estimator's lifetimes become an edge image (a parameter of the
+#: image, never part of a method's name) -> ``clear_behind``. ``predecessor``: Mueggler et
+#: al.'s display, each event also clears the pixel behind it; ``lifetime_only``: nothing cleared.
+DISPLAYS = {"predecessor": True, "lifetime_only": False}
+
+#: The display of ``evedge detect`` by default and of the report's primary comparison: the
+#: authors' code is a fork of Mueggler et al.'s and inherits its display.
+PRIMARY_DISPLAY = "predecessor"
+
+
+def display_clear_behind(display: str) -> bool:
+    """``clear_behind`` of a display policy; ``ValueError`` naming the policies otherwise."""
+    if display not in DISPLAYS:
+        raise ValueError(f"display must be one of {tuple(DISPLAYS)}, got {display!r}")
+    return DISPLAYS[display]
 
 
 class EdgeImage:
@@ -41,6 +57,8 @@ class EdgeImage:
         Clear the neighbour behind each valid event (Mueggler's display).
     invalid : {"ignore", "clear"}
         What an event without estimate does to its pixel.
+    display : {"predecessor", "lifetime_only"}, optional
+        A display policy of :data:`DISPLAYS`; sets ``clear_behind`` (then leave it unset).
 
     Notes
     -----
@@ -48,8 +66,11 @@ class EdgeImage:
     so an edge map is available between any two events.
     """
 
-    def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore") -> None:
+    def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore", *,
+                 display: str | None = None) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
+        if display is not None:
+            clear_behind = display_clear_behind(display)
         if not isinstance(clear_behind, (bool, np.bool_)):
             raise TypeError(f"clear_behind must be a bool, got {clear_behind!r}")
         if invalid not in _INVALID:
@@ -72,7 +93,7 @@ class EdgeImage:
 
     def process(self, events: np.ndarray, lifetimes: np.ndarray) -> None:
         """Apply a time-sorted chunk of events with their lifetimes (aligned)."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_lifetimes(lifetimes, events.shape[0])
         check_not_before(events, self._last_time)
         if events.size == 0:
@@ -101,7 +122,7 @@ class EdgeImage:
 
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
-                invalid: str = "ignore") -> np.ndarray:
+                invalid: str = "ignore", *, display: str | None = None) -> np.ndarray:
     """Edge maps at the given instants (one-shot form of :class:`EdgeImage`).
 
     Parameters
@@ -113,7 +134,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     sensor_size : SensorSize or (width, height)
     times_us : array_like of int
         Instants in us, any order; events with ``t <= T`` count for instant ``T``.
-    clear_behind, invalid
+    clear_behind, invalid, display
         As in :class:`EdgeImage`.
 
     Returns
@@ -122,7 +143,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
         bool, shape ``(len(times_us), height, width)``, in the order of ``times_us``.
     """
     sensor_size = check_sensor_size(sensor_size)
-    check_events(events, sensor_size)
+    events = check_events(events, sensor_size)
     check_lifetimes(lifetimes, events.shape[0])
     times = np.asarray(times_us)
     if times.ndim != 1 or (times.size and times.dtype.kind not in "iuf"):
@@ -130,7 +151,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     if times.size and not np.all(np.isfinite(times)):
         raise ValueError("times_us: non-finite instant")
     out = np.zeros((times.size, *sensor_size.shape), dtype=bool)
-    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid)
+    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
     order = np.argsort(times, kind="stable")
     ends = np.searchsorted(events["t"], times[order], side="right")
     start = 0

@@ -154,6 +154,7 @@ import numpy as np
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream
 from .result import empty_lifetimes
+from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
 __all__ = ["IntraParams", "IntraPixelLifetime", "WindowFit", "estimate_lifetimes", "fit_window", "fit_windows"]
@@ -299,7 +300,7 @@ class IntraPixelLifetime:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
         out = empty_lifetimes(n)
@@ -447,3 +448,12 @@ def fit_window(window_t_us, params: IntraParams | None = None, *, use_intra: boo
     a, b, ok, inl = fit_windows(w[None], params, use_intra=use_intra, seed=seed)
     lifetime = float(np.hypot(a[0], b[0])) if ok[0] else float("nan")
     return WindowFit(float(a[0]), float(b[0]), inl[0], bool(ok[0]), lifetime)
+
+
+def _registered(sensor_size, **params) -> IntraPixelLifetime:
+    """Factory of the method registry: ``IntraPixelLifetime(sensor_size, IntraParams(**params))``."""
+    return IntraPixelLifetime(sensor_size, IntraParams(**params))
+
+
+METHODS.register("intra", _registered, kind="estimator", display_name="proposed (intra-pixel-area)",
+                 colour="#d62ad6", params=IntraParams, filter="buffer")

@@ -136,6 +136,7 @@ from evedge.events import SensorSize, validate_events
 
 from ._mueggler_kernels import NEVER_FIRED, _mueggler_kernel
 from ._checks import check_sensor_size
+from .protocols import METHODS
 from .result import LIFETIME_DTYPE
 
 __all__ = ["MuegglerParams", "MuegglerLifetime", "estimate_lifetimes_mueggler"]
@@ -325,7 +326,7 @@ class MuegglerLifetime:
             (``lifetime_us`` in us, flow in px/s; NaN and ``valid`` False
             when no estimate).
         """
-        validate_events(chunk, self.sensor_size, name="chunk")
+        chunk = validate_events(chunk, self.sensor_size, name="chunk")
         n = chunk.shape[0]
         out = np.empty(n, dtype=LIFETIME_DTYPE)
         if n == 0:
@@ -403,3 +404,12 @@ def estimate_lifetimes_mueggler(
     MuegglerLifetime : the streaming form (identical results).
     """
     return MuegglerLifetime(sensor_size, params, time_origin_us=time_origin_us).process(events)
+
+
+def _registered(sensor_size, *, time_origin_us: int | None = None, **params) -> MuegglerLifetime:
+    """Factory of the method registry: ``MuegglerLifetime(sensor_size, MuegglerParams(**params), time_origin_us=...)``."""
+    return MuegglerLifetime(sensor_size, MuegglerParams(**params), time_origin_us=time_origin_us)
+
+
+METHODS.register("mueggler", _registered, kind="estimator", display_name="Mueggler et al. 2015", colour="#c9a400",
+                 params=MuegglerParams, filter=None, extra_params=("time_origin_us",))

@@ -1,12 +1,16 @@
-"""The whole detector: event buffer, then a lifetime estimator (paper sections 2.2-2.4).
+"""The whole detector: a noise filter, then a lifetime estimator (paper sections 2.2-2.4).
 
-:func:`detect` is the one-shot form; :class:`Detector` the streaming one
-(buffer -> estimator -> edge image, with ``image_at(T)`` at any instant).
+Both stages are looked up in the method registry
+(:data:`evedge.detector.protocols.METHODS`), so any registered estimator and
+filter compose, built-in or third-party. :func:`detect` is the one-shot form;
+:class:`Detector` the streaming one (filter -> estimator -> edge image, with
+``image_at(T)`` at any instant).
 """
 
 from __future__ import annotations
 
-import importlib
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,15 +18,12 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_sensor_size
-from .buffer import BufferParams, EventBuffer, filter_events
 from .edges import EdgeImage
-from .intra import IntraParams, IntraPixelLifetime
-from .result import empty_lifetimes
+from .protocols import METHODS
+from .result import LIFETIME_DTYPE, empty_lifetimes
 
-__all__ = ["DetectionResult", "Detector", "detect", "METHODS"]
-
-#: Lifetime methods and whether the event buffer runs before them by default.
-METHODS = {"intra": True, "mueggler": False}
+__all__ = ["DetectionResult", "Detector", "detect", "edge_frames_of", "keep_mask", "make_method", "method_params",
+           "resolved_params"]
 
 
 @dataclass
@@ -35,123 +36,284 @@ class DetectionResult:
         :data:`~evedge.detector.result.LIFETIME_DTYPE`, aligned with the input
         events; filtered events are invalid (NaN).
     kept : numpy.ndarray
-        bool, True for events that passed the buffer (all True without buffer).
+        bool, True for events that passed the filter (all True without filter).
     """
 
     lifetimes: np.ndarray
     kept: np.ndarray
 
 
-def _mueggler():
+def method_params(name: str, params) -> dict:
+    """Keyword parameters of the registered method ``name`` from ``params``.
+
+    ``params`` is None (defaults), a mapping, or an instance of the entry's
+    parameter dataclass (metadata ``params``, e.g. ``IntraParams``).
+
+    Raises
+    ------
+    TypeError
+        For anything else, naming the method and the class it takes.
+    """
+    entry = METHODS.get(name)
+    cls = entry.metadata.get("params")
+    if params is None:
+        return {}
+    if isinstance(params, Mapping):
+        return dict(params)
+    if cls is not None and isinstance(params, cls):
+        return {f.name: getattr(params, f.name) for f in dataclasses.fields(cls)}
+    takes = f"{cls.__name__} or a mapping" if cls is not None else "a mapping"
+    raise TypeError(f"params: method {name!r} takes {takes}, got {type(params).__name__}")
+
+
+def resolved_params(name: str, params=None) -> dict:
+    """Every parameter of the registered method ``name`` with ``params`` applied (for the output's record).
+
+    With a parameter dataclass: all its fields (validated by constructing it);
+    otherwise the factory's keyword defaults updated by ``params``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        An unknown parameter (naming it and the known ones) or an invalid value.
+    """
+    import inspect
+
+    entry = METHODS.get(name)
+    given = method_params(name, params)
+    cls = entry.metadata.get("params")
+    extra = set(entry.metadata.get("extra_params", ()))
+    if cls is not None:
+        fields = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(given) - fields - extra)
+        if unknown:
+            raise TypeError(f"method {name!r} has no parameter {', '.join(map(repr, unknown))}; "
+                            f"its parameters: {', '.join(sorted(fields | extra))}")
+        value = cls(**{k: v for k, v in given.items() if k in fields})
+        out = {f: getattr(value, f) for f in sorted(fields)}
+        out.update({k: given[k] for k in extra if k in given})
+        return out
     try:
-        return importlib.import_module("evedge.detector.mueggler")
-    except ImportError as exc:  # the baseline lives in its own module, written separately
-        raise RuntimeError(f"method 'mueggler' needs evedge.detector.mueggler: {exc}") from exc
+        sig = inspect.signature(entry.factory)
+    except (TypeError, ValueError):
+        return dict(given)
+    known = {p.name: p.default for p in list(sig.parameters.values())[1:]
+             if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    if not any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
+        unknown = sorted(set(given) - set(known))
+        if unknown:
+            raise TypeError(f"method {name!r} has no parameter {', '.join(map(repr, unknown))}; "
+                            f"its parameters: {', '.join(sorted(known)) or 'none'}")
+    out = {k: v for k, v in known.items() if v is not inspect.Parameter.empty}
+    out.update(given)
+    return out
 
 
-def _check_method(method: str, use_buffer) -> bool:
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-    if use_buffer is None:
-        return METHODS[method]
-    if not isinstance(use_buffer, (bool, np.bool_)):
+def make_method(name: str, sensor_size, params=None, *, kind=None):
+    """Build the registered method ``name`` (or ``package.module:factory``) for a sensor.
+
+    Returns
+    -------
+    object
+        ``factory(sensor_size, **params)``, following the protocol of its kind
+        (:mod:`evedge.detector.protocols`).
+    """
+    entry = METHODS.get(name, kind=kind)
+    return entry.factory(check_sensor_size(sensor_size), **method_params(name, params))
+
+
+def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None) -> np.ndarray:
+    """One-shot keep mask of a registered noise filter over a whole event array.
+
+    Uses the entry's ``keep_mask`` metadata when it has one; otherwise streams
+    the events through the filter and marks the released ones (a released
+    event is matched to the earliest unmatched input with the same x, y, t, p;
+    identical events are indistinguishable anyway).
+    """
+    sensor_size = check_sensor_size(sensor_size)
+    entry = METHODS.get(filter_name, kind="filter")
+    kw = method_params(filter_name, params)
+    events = check_events(events, sensor_size)
+    if "keep_mask" in entry.metadata:
+        return np.asarray(entry.metadata["keep_mask"](events, sensor_size, **kw), dtype=bool)
+    flt = entry.factory(sensor_size, **kw)
+    released = np.concatenate([np.asarray(flt.process(events), dtype=EVENT_DTYPE),
+                               np.asarray(flt.flush(), dtype=EVENT_DTYPE)])
+    mask = np.zeros(events.shape[0], bool)
+    j = 0
+    for r in released:
+        while j < events.shape[0] and events[j] != r:
+            j += 1
+        if j == events.shape[0]:
+            raise ValueError(f"filter {filter_name!r} released an event that is not in its input (or out of order): {r}")
+        mask[j] = True
+        j += 1
+    return mask
+
+
+def edge_frames_of(method: str, events: np.ndarray, sensor_size, times_us, params=None) -> np.ndarray:
+    """bool (n_times, H, W) maps of a registered edge detector at ``times_us`` (any order).
+
+    Uses the entry's one-shot ``frames`` metadata when it has one (the
+    accumulation baselines), else streams the events through the detector and
+    asks ``image_at`` at each instant.
+    """
+    sensor_size = check_sensor_size(sensor_size)
+    entry = METHODS.get(method, kind="edges")
+    kw = method_params(method, params)
+    times = np.asarray(times_us, dtype=np.int64)
+    if "frames" in entry.metadata:
+        return np.asarray(entry.metadata["frames"](events, sensor_size, times, **kw)) > 0
+    det = entry.factory(sensor_size, **kw)
+    out = np.zeros((times.size, sensor_size.height, sensor_size.width), dtype=bool)
+    order = np.argsort(times, kind="stable")
+    ends = np.searchsorted(events["t"], times[order], side="right")
+    start = 0
+    for i, end in zip(order, ends):
+        if end > start:
+            det.process(events[start:end])
+            start = end
+        img = np.asarray(det.image_at(int(times[i])))
+        if img.shape != sensor_size.shape:
+            raise ValueError(f"method {method!r}: image_at returned shape {img.shape}, expected {sensor_size.shape}")
+        out[i] = img.astype(bool)
+    return out
+
+
+def _default_filter(method: str, use_buffer, filter_name):
+    """The filter to run before ``method`` (None: none), from ``use_buffer`` / ``filter_name``."""
+    entry = METHODS.get(method, kind="estimator")
+    if use_buffer is not None and not isinstance(use_buffer, (bool, np.bool_)):
         raise TypeError(f"use_buffer must be a bool or None, got {use_buffer!r}")
-    return bool(use_buffer)
+    default = entry.metadata.get("filter")
+    if use_buffer is None:
+        return filter_name if filter_name is not None else default
+    return (filter_name or default or "buffer") if use_buffer else None
 
 
-def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_params: BufferParams | None = None,
-           params=None, use_buffer: bool | None = None) -> DetectionResult:
-    """Run the event buffer and a lifetime estimator on a whole event array.
+def _check_estimate(name: str, out, n: int) -> np.ndarray:
+    if not isinstance(out, np.ndarray) or out.dtype != LIFETIME_DTYPE or out.shape != (n,):
+        got = f"{type(out).__name__} {getattr(out, 'dtype', '')} shape {getattr(out, 'shape', '?')}"
+        raise TypeError(f"method {name!r}: process() must return {n} rows of LIFETIME_DTYPE, got {got}")
+    return out
+
+
+def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_params=None, params=None,
+           use_buffer: bool | None = None, filter: str | None = None) -> DetectionResult:
+    """Run a noise filter and a lifetime estimator on a whole event array.
 
     Parameters
     ----------
     events : numpy.ndarray
         Time-sorted events of dtype :data:`evedge.events.EVENT_DTYPE`.
     sensor_size : SensorSize or (width, height)
-    method : {"intra", "mueggler"}
-        The paper's intra-pixel-area RANSAC, or Mueggler et al. 2015.
-    buffer_params : BufferParams, optional
-    params : IntraParams or MuegglerParams, optional
-        Parameters of the estimator.
+    method : str
+        A registered estimator (``"intra"``: the paper's intra-pixel-area
+        RANSAC; ``"mueggler"``: Mueggler et al. 2015) or ``package.module:factory``.
+    buffer_params : BufferParams or mapping, optional
+        Parameters of the filter.
+    params : dataclass or mapping, optional
+        Parameters of the estimator (``IntraParams``, ``MuegglerParams``, ...).
     use_buffer : bool, optional
-        Default: True for ``intra`` (the paper's pipeline), False for
-        ``mueggler`` (its original has no such filter).
+        Run the filter; default: the method's registered default (``intra``:
+        the event buffer, as the paper; ``mueggler``: none, as its original).
+    filter : str, optional
+        A registered noise filter (default ``"buffer"``).
 
     Returns
     -------
     DetectionResult
-        Filtered events never reach the estimator (they do not update its SAE).
+        Filtered events never reach the estimator (they do not update its state).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from evedge.events import make_events
+    >>> ev = make_events(np.arange(8) % 4, np.zeros(8), np.arange(8) * 100, np.ones(8, bool))
+    >>> res = detect(ev, (4, 2))
+    >>> res.lifetimes.shape, res.kept.dtype
+    ((8,), dtype('bool'))
     """
     sensor_size = check_sensor_size(sensor_size)
-    buffered = _check_method(method, use_buffer)
-    check_events(events, sensor_size)
-    kept = filter_events(events, sensor_size, buffer_params) if buffered else np.ones(events.shape[0], bool)
-    sub = events[kept] if buffered else events
-    if method == "intra":
-        if params is not None and not isinstance(params, IntraParams):
-            raise TypeError(f"params: method 'intra' takes IntraParams, got {type(params).__name__}")
-        est = IntraPixelLifetime(sensor_size, params).process(sub)
-    else:
-        est = _mueggler().estimate_lifetimes_mueggler(sub, sensor_size, params)
+    flt = _default_filter(method, use_buffer, filter)
+    estimator = make_method(method, sensor_size, params, kind="estimator")
+    events = check_events(events, sensor_size)
+    kept = keep_mask(flt, events, sensor_size, buffer_params) if flt else np.ones(events.shape[0], bool)
+    sub = events[kept] if flt else events
+    est = _check_estimate(method, estimator.process(sub), sub.shape[0])
     lifetimes = empty_lifetimes(events.shape[0])
     lifetimes[kept] = est
     return DetectionResult(lifetimes, kept)
 
 
 class Detector:
-    """Streaming intra-pixel-area detector: buffer -> lifetimes -> edge image.
+    """Streaming detector: noise filter -> lifetime estimator -> edge image.
 
     Parameters
     ----------
     sensor_size : SensorSize or (width, height)
-    buffer_params : BufferParams, optional
-    params : IntraParams, optional
-    use_buffer : bool
-    clear_behind, invalid
-        Passed to :class:`~evedge.detector.edges.EdgeImage`.
+    buffer_params : BufferParams or mapping, optional
+        Parameters of the filter.
+    params : dataclass or mapping, optional
+        Parameters of the estimator.
+    use_buffer : bool, optional
+        Run the filter (default: the method's registered default).
+    clear_behind, invalid, display
+        Passed to :class:`~evedge.detector.edges.EdgeImage` (``display`` names a policy).
+    method : str
+        Any registered estimator (default ``"intra"``) or ``package.module:factory``.
+    filter : str, optional
+        Any registered noise filter (default ``"buffer"``).
 
     Notes
     -----
-    :meth:`process` returns the events released by the buffer (at most
-    ``tau_min_us`` late) with their lifetimes; :meth:`image_at` answers for any
-    ``T`` not before the newest released event. All outputs concatenated equal
-    :func:`detect` on the whole stream, restricted to the kept events.
+    :meth:`process` returns the events released by the filter (the buffer:
+    at most ``tau_min_us`` late) with their lifetimes; :meth:`image_at` answers
+    for any ``T`` not before the newest released event. All outputs
+    concatenated equal :func:`detect` on the whole stream, restricted to the
+    kept events.
     """
 
-    def __init__(self, sensor_size, buffer_params: BufferParams | None = None, params: IntraParams | None = None,
-                 use_buffer: bool = True, clear_behind: bool = False, invalid: str = "ignore") -> None:
+    def __init__(self, sensor_size, buffer_params=None, params=None, use_buffer: bool | None = None,
+                 clear_behind: bool = False, invalid: str = "ignore", *, method: str = "intra",
+                 filter: str | None = None, display: str | None = None) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
-        self.use_buffer = _check_method("intra", use_buffer)
-        self.buffer = EventBuffer(self.sensor_size, buffer_params)
-        self.estimator = IntraPixelLifetime(self.sensor_size, params)
-        self.edges = EdgeImage(self.sensor_size, clear_behind=clear_behind, invalid=invalid)
+        self.method = method
+        self.filter_name = _default_filter(method, use_buffer, filter)
+        self.use_buffer = self.filter_name is not None
+        self.buffer = make_method(self.filter_name, self.sensor_size, buffer_params, kind="filter") \
+            if self.filter_name else None
+        self.estimator = make_method(method, self.sensor_size, params, kind="estimator")
+        self.edges = EdgeImage(self.sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
 
     def reset(self) -> None:
         """Forget the stream."""
-        self.buffer.reset()
+        if self.buffer is not None:
+            self.buffer.reset()
         self.estimator.reset()
         self.edges.reset()
 
     def _run(self, released: np.ndarray):
-        lifetimes = self.estimator.process(released)
+        lifetimes = _check_estimate(self.method, self.estimator.process(released), released.shape[0])
         self.edges.process(released, lifetimes)
         return released, lifetimes
 
     def process(self, events: np.ndarray):
         """Feed a time-sorted chunk; return ``(released_events, lifetimes)``."""
-        if not self.use_buffer:
+        events = check_events(events, self.sensor_size, name="chunk")
+        if self.buffer is None:
             return self._run(events)
         return self._run(self.buffer.process(events))
 
     def advance_to(self, t_us: int):
-        """No event before ``t_us`` will come: release what the buffer has decided; ``(events, lifetimes)``."""
-        if not self.use_buffer:
+        """No event before ``t_us`` will come: release what the filter has decided; ``(events, lifetimes)``."""
+        if self.buffer is None or not hasattr(self.buffer, "advance_to"):
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
         return self._run(self.buffer.advance_to(t_us))
 
     def flush(self):
-        """End of stream: release what the buffer still holds; ``(events, lifetimes)``."""
-        if not self.use_buffer:
+        """End of stream: release what the filter still holds; ``(events, lifetimes)``."""
+        if self.buffer is None:
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
         return self._run(self.buffer.flush())
 

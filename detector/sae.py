@@ -58,7 +58,7 @@ class SurfaceOfActiveEvents:
 
     def process(self, events: np.ndarray) -> None:
         """Write a time-sorted chunk of events into the surface (later events win)."""
-        check_events(events, self.sensor_size)
+        events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         if events.size == 0:
             return

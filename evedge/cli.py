@@ -16,10 +16,13 @@ from . import __version__
 # name -> "module:attribute" of a click command
 _SUBCOMMANDS = {
     "info": "evedge.io.cli:info",
+    "convert": "evedge.io.cli:convert",
+    "render": "evedge.video_cli:render",
     "simulate": "evedge.sim.cli:simulate",
     "detect": "evedge.detector.cli:detect",
     "bench": "evedge.bench.cli:bench",
     "demo": "evedge.bench.cli:demo",
+    "grade": "evedge.bench.cli:grade",
 }
 
 

@@ -184,12 +184,14 @@ def find_time_decrease(t) -> tuple[int, int] | None:
 
 
 def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *, name: str = "events") -> np.ndarray:
-    """Check an event array and return it unchanged.
+    """Convert an event array to :data:`EVENT_DTYPE` (see :func:`as_events`) and check it.
 
     Parameters
     ----------
     events : numpy.ndarray
-        Events of :data:`EVENT_DTYPE`, 1-D.
+        1-D structured array with fields x, y, t, p: :data:`EVENT_DTYPE`, or
+        any array :func:`as_events` converts losslessly (tonic, faery,
+        dv-processing, other integer widths).
     sensor_size : SensorSize, optional
         When given, every ``x`` must lie in ``[0, width)`` and ``y`` in ``[0, height)``.
     name : str
@@ -198,22 +200,27 @@ def validate_events(events: np.ndarray, sensor_size: SensorSize | None = None, *
     Returns
     -------
     numpy.ndarray
-        ``events`` itself.
+        ``events`` itself when already of :data:`EVENT_DTYPE`, else the
+        converted copy: callers must use the returned array.
 
     Raises
     ------
     TypeError
-        When ``events`` is not a structured array of :data:`EVENT_DTYPE`.
+        When ``events`` is not a structured array with fields x, y, t, p.
     ValueError
-        When coordinates fall outside ``sensor_size`` or timestamps decrease
+        When the conversion would be lossy (see :func:`as_events`),
+        coordinates fall outside ``sensor_size`` or timestamps decrease
         (call :func:`sort_events` to sort explicitly). The message names
         ``name`` and the first offending index.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> faery_like = np.zeros(2, dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("on", "?")])
+    >>> validate_events(faery_like, SensorSize(4, 4)).dtype == EVENT_DTYPE
+    True
     """
-    if not isinstance(events, np.ndarray) or events.dtype != EVENT_DTYPE:
-        got = getattr(events, "dtype", type(events).__name__)
-        raise TypeError(f"{name}: expected a structured array of dtype {EVENT_DTYPE}, got {got}")
-    if events.ndim != 1:
-        raise ValueError(f"{name}: expected a 1-D event array, got shape {events.shape}")
+    events = as_events(events, name=name)
     if events.size == 0:
         return events
     outside = find_out_of_sensor(events["x"], events["y"], sensor_size) if sensor_size is not None else None
@@ -296,6 +303,9 @@ class Recording:
         Exact edge maps (boolean images) with their timestamps, from the simulator.
     metadata : dict
         JSON-serialisable facts: source file, how the sensor size was found, scene, versions.
+    calibration : evedge.calibration.CameraCalibration or None
+        Intrinsics and distortion of the camera (an ECD folder's ``calib.txt``);
+        see :func:`evedge.calibration.undistort_events`.
     """
 
     events: np.ndarray
@@ -304,9 +314,15 @@ class Recording:
     truth: np.ndarray | None = None
     edges: Frames | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    calibration: Any = None
 
     def __post_init__(self) -> None:
-        validate_events(self.events, self.sensor_size)
+        self.events = validate_events(self.events, self.sensor_size, name="Recording: events")
+        if self.calibration is not None:
+            from .calibration import CameraCalibration  # it imports this module
+
+            if not isinstance(self.calibration, CameraCalibration):
+                raise TypeError(f"Recording: calibration must be a CameraCalibration, got {type(self.calibration).__name__}")
         if self.truth is not None and self.truth.shape != self.events.shape:
             raise ValueError(
                 f"Recording: truth has {self.truth.shape[0]} rows but there are {self.events.shape[0]} events"
@@ -317,3 +333,235 @@ class Recording:
                     f"Recording: {label} are {stack.images.shape[2]}x{stack.images.shape[1]} but the "
                     f"sensor is {self.sensor_size.width}x{self.sensor_size.height}"
                 )
+
+
+#: Field names taken as each event field, in order of preference: tonic and
+#: Prophesee use ``x, y, t, p``; dv-processing ``timestamp`` and ``polarity``;
+#: faery and the ``aedat`` package ``on`` (faery titles it ``p``).
+FIELD_ALIASES = {
+    "x": ("x",),
+    "y": ("y",),
+    "t": ("t", "timestamp", "ts"),
+    "p": ("p", "polarity", "on", "pol"),
+}
+
+#: faery's event dtype (``faery.EVENTS_DTYPE``): unsigned, ``t`` first, the
+#: polarity field named ``on`` with the title ``p``.
+FAERY_DTYPE = np.dtype([("t", "<u8"), ("x", "<u2"), ("y", "<u2"), (("p", "on"), "?")])
+
+
+def _field(events: np.ndarray, key: str, name: str) -> np.ndarray:
+    """The one column of ``events`` that stands for ``key`` (a name or a title)."""
+    fields = events.dtype.fields
+    found = [alias for alias in FIELD_ALIASES[key] if alias in fields]
+    # a titled field is listed under its name and its title: count each column once
+    columns = {fields[alias][1]: alias for alias in found}
+    if not columns:
+        raise TypeError(
+            f"{name}: no field for {key!r} (looked for {', '.join(FIELD_ALIASES[key])}); "
+            f"the array has fields {', '.join(events.dtype.names)}"
+        )
+    if len(columns) > 1:
+        raise TypeError(f"{name}: fields {', '.join(found)} all could be {key!r}; keep one")
+    return events[found[0]]
+
+
+def _as_time_us(t: np.ndarray, name: str) -> np.ndarray:
+    """Integer microseconds from an integer or datetime/timedelta column, exactly or not at all."""
+    if t.dtype.kind in "mM":
+        unit, count = np.datetime_data(t.dtype)
+        if unit == "generic":
+            raise ValueError(f"{name}: field 't' is {t.dtype} without a unit; give it one (e.g. 'm8[us]')")
+        nat = np.flatnonzero(np.isnat(t))
+        if nat.size:
+            raise ValueError(f"{name}: field 't' is NaT (not a time) at index {int(nat[0])}")
+        # exact to microseconds when converting there and back gives the same ticks
+        in_us = t.astype(f"{t.dtype.kind}8[us]")
+        lost = np.flatnonzero(in_us.astype(t.dtype).view(np.int64) != t.view(np.int64))
+        if lost.size:
+            i = int(lost[0])
+            raise ValueError(
+                f"{name}: field 't' ({t.dtype}) is not a whole number of microseconds at index {i} "
+                f"({t[i]}); {lost.size} values would be rounded. Round explicitly first"
+            )
+        return in_us.view(np.int64)
+    if t.dtype.kind == "f":
+        raise ValueError(
+            f"{name}: field 't' is {t.dtype}; evedge's timestamps are integer microseconds. "
+            f"If these are seconds, convert with evedge.events.seconds_to_us"
+        )
+    if t.dtype.kind not in "iu":
+        raise TypeError(f"{name}: field 't' must hold integer microseconds, got {t.dtype}")
+    if t.size and t.dtype.kind == "u" and int(t.max()) > np.iinfo(np.int64).max:
+        i = int(np.argmax(t))
+        raise ValueError(f"{name}: field 't' at index {i} is {int(t[i])}, beyond int64 microseconds")
+    return t.astype(np.int64)
+
+
+def _as_polarity(p: np.ndarray, name: str) -> np.ndarray:
+    """True for ON from bool, {0, 1} or {-1, +1}; anything else is an error."""
+    if p.dtype.kind == "b":
+        return p.astype(bool)
+    if p.dtype.kind not in "iu":
+        raise TypeError(f"{name}: field 'p' must be bool or integer (0/1 or -1/+1), got {p.dtype}")
+    if p.size == 0:
+        return np.zeros(0, dtype=bool)
+    bad = np.flatnonzero((p != 0) & (p != 1) & (p != -1) if p.dtype.kind == "i" else (p > 1))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"{name}: field 'p' at index {i} is {int(p[i])}; polarity must be 0/1, -1/+1 or bool "
+            f"({bad.size} values are not)"
+        )
+    if p.dtype.kind == "i" and (p == -1).any() and (p == 0).any():
+        i = int(np.flatnonzero(p == 0)[0]) if p[0] == -1 else int(np.flatnonzero(p == -1)[0])
+        raise ValueError(
+            f"{name}: field 'p' mixes -1 and 0 (index {i}): OFF cannot be both; use 0/1 or -1/+1"
+        )
+    return p > 0
+
+
+def as_events(events, *, name: str = "events") -> np.ndarray:
+    """Convert any x, y, t, p structured array to :data:`EVENT_DTYPE`, losslessly or not at all.
+
+    Accepts the arrays of tonic (``tonic.io.events_struct``, the same dtype),
+    faery and ``aedat`` (``t`` uint64, ``x``/``y`` uint16, ``on`` bool),
+    dv-processing (``EventStore.numpy()``: ``timestamp``, ``polarity`` int8)
+    and Prophesee's Metavision (``p`` int16), in any field order, byte order
+    or integer width. Other fields are dropped.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        1-D structured array with a field for each of x, y, t and p (names
+        in :data:`FIELD_ALIASES`, or titles).
+    name : str
+        What to call the array in messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``events`` itself when already of :data:`EVENT_DTYPE`, else a new
+        array of that dtype.
+
+    Raises
+    ------
+    TypeError
+        When ``events`` is not a 1-D structured array with those fields, or a
+        field's type cannot hold them (float coordinates, string polarity).
+    ValueError
+        When the conversion would lose information, naming the field and
+        the first index: a coordinate outside int16, a float ``t`` (seconds?
+        use :func:`seconds_to_us`), a ``datetime64``/``timedelta64`` ``t`` that
+        is not a whole number of microseconds, a ``t`` beyond int64, a
+        polarity that is not 0/1, -1/+1 or bool.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dv_like = np.array([(10, 1, 2, 1), (20, 3, 4, 0)],
+    ...     dtype=[("timestamp", "<i8"), ("x", "<i2"), ("y", "<i2"), ("polarity", "i1")])
+    >>> ev = as_events(dv_like)
+    >>> ev.dtype == EVENT_DTYPE, ev["t"].tolist(), ev["p"].tolist()
+    (True, [10, 20], [True, False])
+    >>> as_events(np.zeros(1, dtype=[("x", "u2"), ("y", "u2"), ("t", "f8"), ("p", "?")]))
+    Traceback (most recent call last):
+    ...
+    ValueError: events: field 't' is float64; evedge's timestamps are integer microseconds. If these are seconds, convert with evedge.events.seconds_to_us
+    """
+    if isinstance(events, np.ndarray) and events.dtype == EVENT_DTYPE:
+        if events.ndim != 1:
+            raise ValueError(f"{name}: expected a 1-D event array, got shape {events.shape}")
+        return events
+    if not isinstance(events, np.ndarray) or events.dtype.names is None:
+        got = getattr(events, "dtype", type(events).__name__)
+        raise TypeError(
+            f"{name}: expected a structured array with fields x, y, t, p (e.g. dtype {EVENT_DTYPE}), got {got}"
+        )
+    if events.ndim != 1:
+        raise ValueError(f"{name}: expected a 1-D event array, got shape {events.shape}")
+    out = np.empty(events.shape[0], dtype=EVENT_DTYPE)
+    for key in "xy":
+        col = _field(events, key, name)
+        if col.dtype.kind not in "iu":
+            raise TypeError(f"{name}: field {key!r} must hold integer pixel coordinates, got {col.dtype}")
+        info = np.iinfo(np.int16)
+        bad = np.flatnonzero((col < info.min) | (col > info.max)) if col.size else col[:0]
+        if bad.size:
+            i = int(bad[0])
+            raise ValueError(
+                f"{name}: field {key!r} at index {i} is {int(col[i])}, outside int16 "
+                f"({info.min}..{info.max}); {bad.size} values are"
+            )
+        out[key] = col
+    out["t"] = _as_time_us(_field(events, "t", name), name)
+    out["p"] = _as_polarity(_field(events, "p", name), name)
+    return out
+
+
+def to_tonic(events) -> np.ndarray:
+    """Events as tonic takes them: an array of ``tonic.io.events_struct``.
+
+    :data:`EVENT_DTYPE` is tonic's dtype, so this is :func:`as_events`; pair
+    it with :meth:`SensorSize.as_tonic` for tonic's ``sensor_size``.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Any array :func:`as_events` accepts.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> ev = make_events([1, 2], [3, 4], [10, 20], [1, 0])
+    >>> to_tonic(ev) is ev, SensorSize(240, 180).as_tonic()
+    (True, (240, 180, 2))
+
+    With tonic installed: ``tonic.transforms.Denoise(filter_time=10000)(to_tonic(ev))``.
+    """
+    return as_events(events, name="to_tonic: events")
+
+
+def to_faery(events) -> np.ndarray:
+    """Events as faery takes them: a new array of :data:`FAERY_DTYPE`.
+
+    Parameters
+    ----------
+    events : numpy.ndarray
+        Any array :func:`as_events` accepts.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``t`` uint64, ``x``/``y`` uint16, ``on`` bool, in the same order.
+
+    Raises
+    ------
+    ValueError
+        When a coordinate or a timestamp is negative (faery's are unsigned),
+        naming the field and the first index.
+
+    Examples
+    --------
+    >>> ev = make_events([1, 2], [3, 4], [10, 20], [1, 0])
+    >>> to_faery(ev)["on"].tolist()
+    [True, False]
+
+    With faery installed, a stream for its renderers and encoders:
+    ``faery.events_stream_from_array(to_faery(ev), dimensions=(240, 180))``.
+    """
+    events = as_events(events, name="to_faery: events")
+    for key in "xyt":
+        neg = np.flatnonzero(events[key] < 0)
+        if neg.size:
+            i = int(neg[0])
+            raise ValueError(
+                f"to_faery: events: field {key!r} at index {i} is {int(events[key][i])}; faery's "
+                f"{key} is unsigned ({neg.size} negative values)"
+            )
+    out = np.empty(events.shape[0], dtype=FAERY_DTYPE)
+    out["t"], out["x"], out["y"], out["on"] = events["t"], events["x"], events["y"], events["p"]
+    return out

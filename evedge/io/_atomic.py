@@ -47,13 +47,15 @@ def check_output_file(target: Path, who: str) -> None:
 
 
 @contextmanager
-def atomic_path(target: Path) -> Iterator[Path]:
+def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
     """Yield a temp path beside ``target``; on success rename it to ``target``.
 
     On any exception the temp file is removed and ``target`` is untouched.
-    The temp name starts with a dot and ends in ``.tmp``.
+    The temp name starts with a dot and ends in ``suffix`` (``.tmp``; a
+    writer that picks its container by extension, as OpenCV's video writer
+    does, passes e.g. ``".tmp.mp4"``).
     """
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=suffix)
     os.close(fd)
     try:
         yield Path(tmp)

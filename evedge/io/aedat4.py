@@ -20,6 +20,8 @@ import numpy as np
 
 from ..events import Frames, Recording, SensorSize
 from ._checks import EventFileError, finish_events, locate_index
+from ._native import is_decoder_failure
+from .registry import Format, register_format
 
 
 def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:
@@ -57,8 +59,10 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
     try:
         decoder = aedat.Decoder(str(path))
         streams = decoder.id_to_stream()
-    except (RuntimeError, OSError, ValueError) as err:
-        raise EventFileError(f"{path}: not a readable AEDAT4 file: {err}") from err
+    except BaseException as err:
+        if not is_decoder_failure(err):
+            raise
+        raise EventFileError(f"{path}: not a readable AEDAT4 file: {err}") from None
     event_ids = sorted(i for i, s in streams.items() if s.get("type") == "events")
     if not event_ids:
         kinds = sorted({s.get("type", "?") for s in streams.values()})
@@ -94,8 +98,10 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
             else:
                 key = next((k for k in content if k != "stream_id"), "?")
                 skipped[key] = skipped.get(key, 0) + 1
-    except (RuntimeError, OSError, ValueError) as err:
-        raise EventFileError(f"{path}: AEDAT4 packet {packet + 1} cannot be decoded (truncated or corrupt file?): {err}") from err
+    except BaseException as err:
+        if not is_decoder_failure(err):
+            raise
+        raise EventFileError(f"{path}: AEDAT4 packet {packet + 1} cannot be decoded (truncated or corrupt file?): {err}") from None
     raw = np.concatenate(chunks) if chunks else np.empty(0, dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("on", "?")])
     t = raw["t"]
     if t.size and int(t.max()) > np.iinfo(np.int64).max:
@@ -111,3 +117,40 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
     if was_sorted:
         metadata["sorted_on_load"] = True
     return Recording(events, file_size, frames=frames, metadata=metadata)
+
+
+def write_aedat4(path: str | os.PathLike, recording: Recording) -> Path:
+    """Write the events of ``recording`` as AEDAT 4 (one LZ4-compressed event stream) through faery.
+
+    Frames are not written: faery 0.7.1's encoder cannot build frame packets
+    from Python. Atomic (temp file, then rename).
+
+    Parameters
+    ----------
+    path : path-like
+    recording : Recording
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        Negative coordinates or timestamps (AEDAT 4 stores them unsigned), or an encoder failure.
+
+    Examples
+    --------
+    >>> from evedge.io import read_events, write_aedat4
+    >>> write_aedat4("out.aedat4", read_events("slider_depth"))  # doctest: +SKIP
+    """
+    from ._native import faery_encode
+
+    return faery_encode(Path(path), recording, "AEDAT 4", "aedat", who="write_aedat4")
+
+
+register_format(Format(
+    "aedat4", "AEDAT 4 (iniVation DV): events and 8-bit frames (written: events)",
+    extensions=(".aedat4",), read=read_aedat4, write=write_aedat4,
+    sniff=lambda head: head.startswith(b"#!AER-DAT4.0"),
+))

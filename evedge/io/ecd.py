@@ -2,7 +2,9 @@
 
 ``events.txt`` holds one event per line, ``t x y p``, with ``t`` in float
 seconds and ``p`` in {0, 1}; ``images.txt`` holds ``t images/frame_XXXXXXXX.png``
-per line and the PNGs are 8-bit grey frames. Comment lines start with ``#``.
+per line and the PNGs are 8-bit grey frames; ``calib.txt`` holds ``fx fy cx cy
+k1 k2 p1 p2 k3`` (kept as ``Recording.calibration``, see :mod:`evedge.calibration`).
+Comment lines start with ``#``.
 
 Parsing is vectorised (:func:`numpy.loadtxt`, about 5 M lines/s here); the
 slow per-line scan runs only after a failure, to name the first bad line.
@@ -24,9 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration import CameraCalibration
 from ..events import Frames, Recording, SensorSize, seconds_to_us
 from ._atomic import atomic_path, current_umask, make_temp_dir
 from ._checks import EventFileError, finish_events
+from .registry import Format, register_format
 
 _COLUMNS = ("t", "x", "y", "p")
 _FRAME_NAME = re.compile(r"frame_\d{8}\.png")
@@ -228,9 +232,17 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
     metadata = {"source": str(path), "format": "ecd-text", "sensor_size_from": size_from}
     if frames is not None:
         metadata["frames_source"] = str(images_txt)
+    calibration = None
+    calib_txt = path.parent / "calib.txt"
+    if calib_txt.is_file():
+        try:
+            calibration = CameraCalibration.read(calib_txt)
+        except ValueError as err:
+            raise EventFileError(str(err)) from None
+        metadata["calibration_source"] = str(calib_txt)
     if was_sorted:
         metadata["sorted_on_load"] = True
-    return Recording(events, sensor_size, frames=frames, metadata=metadata)
+    return Recording(events, sensor_size, frames=frames, metadata=metadata, calibration=calibration)
 
 
 # ---------------------------------------------------------------- writing
@@ -342,6 +354,12 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
                 os.chmod(staged / name, 0o666 & ~current_umask())
                 s, us = divmod(int(t), 1_000_000)
                 lines.append(f"{s}.{us:06d}000 images/{name}\n")
+        if recording.calibration is not None:
+            with atomic_path(folder / "calib.txt") as calib_tmp:
+                calib_tmp.write_text(" ".join(repr(v) for v in recording.calibration.as_list()) + "\n")
+        else:
+            # an old calib.txt must not be paired with these events on reading back
+            (folder / "calib.txt").unlink(missing_ok=True)
         with atomic_path(folder / "events.txt") as events_tmp:
             with open(events_tmp, "wb") as fh:
                 write_events(fh)
@@ -371,3 +389,18 @@ def _replace_tree(new: Path | None, target: Path) -> None:
         os.replace(new, target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _write_ecd_folder(path: Path, recording: Recording) -> Path:
+    if path.suffix.lower() == ".txt":
+        raise ValueError(
+            f"{path}: the Event Camera Dataset format is a folder (events.txt, images.txt, images/); "
+            f"give the folder, e.g. {path.with_suffix('')}"
+        )
+    return write_ecd(path, recording)
+
+
+register_format(Format(
+    "ecd", "Event Camera Dataset folder (events.txt [+ images.txt, images/, calib.txt])",
+    extensions=(".txt",), read=read_ecd, write=_write_ecd_folder, folder=True, holds=("frames",),
+))

@@ -21,9 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration import CameraCalibration
 from ..events import Frames, Recording, SensorSize
 from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError, finish_events, locate_index
+from .registry import Format, register_format
 
 FORMAT_NAME = "evedge"
 FORMAT_VERSION = 1
@@ -86,6 +88,9 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
             f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
             f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
             f.attrs["metadata"] = metadata
+            if recording.calibration is not None:
+                # fx fy cx cy k1 k2 p1 p2 k3, as in calib.txt
+                f.attrs["calibration"] = np.asarray(recording.calibration.as_list(), dtype=np.float64)
             ev = recording.events
             group = f.create_group("events", track_order=True)
             chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
@@ -267,6 +272,12 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
                 truth[name] = col
         frames = _stack(f, path, "frames", sensor)
         edges = _stack(f, path, "edges", sensor)
+        calibration = None
+        if "calibration" in f.attrs:
+            try:
+                calibration = CameraCalibration(*np.asarray(f.attrs["calibration"], dtype=np.float64).reshape(9).tolist())
+            except (TypeError, ValueError) as err:
+                raise EventFileError(f"{path}: attribute 'calibration' is not 9 numbers fx fy cx cy k1 k2 p1 p2 k3: {err}") from None
     order = None
     if sort:
         order = np.argsort(t, kind="stable")
@@ -276,7 +287,8 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
     metadata.update({"source": str(path), "format": "evedge-hdf5", "sensor_size_from": "file metadata"})
     if was_sorted:
         metadata["sorted_on_load"] = True
-    return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata)
+    return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata,
+                     calibration=calibration)
 
 
 def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> Iterator[np.ndarray]:
@@ -320,3 +332,10 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
             last_t = int(t[-1]) if t.size else last_t
             yield events
 
+
+
+register_format(Format(
+    "hdf5", "evedge HDF5 (events, truth, frames, edge maps, metadata)",
+    extensions=(".h5", ".hdf5"), read=read_hdf5, write=write_recording,
+    sniff=lambda head: head.startswith(b"\x89HDF\r\n\x1a\n"), holds=("frames", "truth", "edges"),
+))

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..events import SENSOR_PRESETS, Recording, SensorSize
 from ._checks import EventFileError, finish_events
+from .registry import Format, register_format
 
 _COLUMNS = ("x", "y", "p", "t")
 
@@ -111,3 +112,9 @@ def read_mat(
     if was_sorted:
         metadata["sorted_on_load"] = True
     return Recording(events, sensor_size, metadata=metadata)
+
+
+register_format(Format(
+    "mat", "MATLAB .mat with an events matrix [x, y, p, t] (Mueggler et al.'s DVS128 data)",
+    extensions=(".mat",), read=read_mat, sniff=lambda head: head.startswith(b"MATLAB 5.0 MAT-file"),
+))

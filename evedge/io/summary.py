@@ -66,6 +66,10 @@ def summarize(recording: Recording) -> dict[str, Any]:
         "frames": len(recording.frames) if recording.frames is not None else 0,
         "edges": len(recording.edges) if recording.edges is not None else 0,
         "truth_fields": list(recording.truth.dtype.names) if recording.truth is not None else [],
+        "calibration": recording.calibration.as_list() if recording.calibration is not None else None,
+        **({"detection": {k: meta.get(k) for k in ("method", "method_display_name", "kind", "display", "params",
+                                                   "filter", "filter_params", "detection_source", "versions")}}
+           if meta.get("format") == "evedge-detection" else {}),
     }
 
 
@@ -93,5 +97,21 @@ def format_summary(info: dict[str, Any]) -> str:
         ("edge maps", str(info["edges"])),
         ("truth", ", ".join(info["truth_fields"]) or "none"),
     ]
+    det = info.get("detection")
+    if det:  # an evedge detect output: what made it
+        src = det.get("detection_source") or {}
+        lines += [
+            ("method", f"{det['method']} ({det.get('method_display_name')}, {det.get('kind')})"
+             + (f", display {det['display']}" if det.get("display") else "")),
+            ("params", ", ".join(f"{k}={v}" for k, v in (det.get("params") or {}).items()) or "none"),
+            ("filter", f"{det['filter']}: " + ", ".join(f"{k}={v}" for k, v in (det.get("filter_params") or {}).items())
+             if det.get("filter") else "none"),
+            ("source", f"{src.get('path')} (sha256 {str(src.get('sha256'))[:16]}...)"),
+            ("versions", ", ".join(f"{k} {v}" for k, v in (det.get("versions") or {}).items())),
+        ]
+    if info.get("calibration") is not None:
+        fx, fy, cx, cy, *dist = info["calibration"]
+        lines.append(("calibration", f"fx {fx:.3f} fy {fy:.3f} cx {cx:.3f} cy {cy:.3f}, "
+                                     f"k1 k2 p1 p2 k3 = {' '.join(f'{d:.4g}' for d in dist)}"))
     width = max(len(k) for k, _ in lines)
     return "\n".join(f"{k:<{width}}  {v}" for k, v in lines)

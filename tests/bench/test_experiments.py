@@ -94,7 +94,7 @@ def test_real_experiment_on_written_ecd_folder(moving_edge, tmp_path):
 
     from evedge.bench.canny import CANNY_SETTINGS, canny_edges
     from evedge.bench.cdm import cdm
-    from evedge.bench.methods import DISPLAY_CLEAR_BEHIND, split_key
+    from evedge.bench.methods import DISPLAY_CLEAR_BEHIND, compared
     from evedge.detector import detect
     from evedge.detector.edges import edge_frames
     from evedge.io import read_events
@@ -115,7 +115,7 @@ def test_real_experiment_on_written_ecd_folder(moving_edge, tmp_path):
     for m in METHODS:
         v = np.asarray(r["cdm"]["canny_matlab_0.3"][m])
         assert v.shape == (len(idx),)
-        base, display = split_key(m)
+        base, display = compared(m).base, compared(m).display
         if base == "proposed":
             want = edge_frames(moving_edge.events[det.kept], det.lifetimes[det.kept], moving_edge.sensor_size,
                                moving_edge.frames.t_us[idx], clear_behind=DISPLAY_CLEAR_BEHIND[display])
@@ -235,16 +235,15 @@ def test_display_policy_known_answer():
 
 
 def test_display_keys_and_validation():
-    from evedge.bench.methods import (DISPLAYS, PRIMARY_DISPLAY, check_displays, display_view, method_key,
-                                      split_key)
+    from evedge.bench.methods import DISPLAYS, PRIMARY_DISPLAY, check_displays, compared, display_view, method_key
 
     assert PRIMARY_DISPLAY == DISPLAYS[0] == "predecessor"
     assert method_key("proposed", "predecessor") == "proposed"
     assert method_key("mueggler", "lifetime_only") == "mueggler_noclear"
     assert method_key("acc_1ms", "lifetime_only") == "acc_1ms"
     for key in METHODS + DIAGNOSTIC_METHODS:
-        base, display = split_key(key)
-        assert display is None or method_key(base, display) == key
+        c = compared(key)
+        assert c.display is None or method_key(c.base, c.display) == key
     view = display_view({"proposed": 1, "proposed_noclear": 2, "acc_1ms": 3, "mueggler_t0_noclear": 4}, "lifetime_only")
     assert view == {"proposed": 2, "acc_1ms": 3, "mueggler_t0": 4}
     with pytest.raises(ValueError, match="displays"):

@@ -36,7 +36,7 @@ def test_detect_intra_writes_lifetimes_and_frames(tmp_path, edge_events):
     assert np.nanmedian(lt) == np.float64(np.nanmedian(want.lifetimes["lifetime_us"]))
     pngs = sorted((out / "edges").glob("*.png"))
     assert len(pngs) == 2
-    img = np.asarray(Image.open(pngs[1])) > 0
+    img = np.asarray(Image.open(pngs[1])) == 0  # black edges on white, as the report draws them
     np.testing.assert_array_equal(img, frames[1])
     assert frames[1].any()
     assert not list(out.glob(".*tmp"))  # no temp files left
@@ -157,3 +157,50 @@ def test_detect_warns_when_no_frame_fits(tmp_path):
     res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10",
                                       "--quiet", "--times", "1500"])
     assert res.exit_code == 0 and "1 edge frames" in res.stdout and res.stderr == ""
+
+
+def test_detect_params_config_and_self_description(tmp_path, edge_events):
+    """--param and --config reach the estimator and the buffer, and are echoed; the file names its source."""
+    from evedge.detector import BufferParams, IntraParams
+    from evedge.io.detection import file_sha256, read_detection
+
+    ev, _ = edge_events(20, 16, 400, 0.3, n_edges=2, spacing_px=8)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('display = "lifetime_only"\n[params]\ndelta_px = 0.1\nseed = 4\n[buffer]\ntau_min_us = 3000\n')
+    out = tmp_path / "out"
+    res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "20x16", "--times", "20000", "--quiet",
+                                      "--config", str(cfg), "--param", "seed=7", "--param", "buffer.mode=causal"])
+    assert res.exit_code == 0, res.output
+    d = read_detection(out / "detection.h5")
+    assert d.metadata["params"]["delta_px"] == 0.1 and d.metadata["params"]["seed"] == 7  # --param wins
+    assert d.metadata["params"]["window_size"] == 5  # every parameter, defaults included
+    assert d.metadata["filter_params"] == {"mode": "causal", "tau_min_us": 3000}
+    assert d.metadata["display"] == "lifetime_only" and d.metadata["method"] == "intra"
+    assert d.metadata["source"]["sha256"] == file_sha256(src) and d.metadata["source"]["path"] == str(src.resolve())
+    assert set(d.metadata["versions"]) >= {"evedge", "numpy", "python"}
+    assert d.events.tobytes() == ev.tobytes()
+    want = run_detect(ev, SensorSize(20, 16), params=IntraParams(delta_px=0.1, seed=7),
+                      buffer_params=BufferParams(tau_min_us=3000, mode="causal"))
+    assert d.lifetimes["lifetime_us"].tobytes() == want.lifetimes["lifetime_us"].tobytes()
+    np.testing.assert_array_equal(d.lifetimes["kept"], want.kept)
+    for bad, msg in ((["--param", "nope=1"], "no parameter 'nope'"), (["--param", "delta_px=3"], "delta_px"),
+                     (["--param", "novalue"], "key=value"), (["--method", "canny"], "unknown method 'canny'"),
+                     (["--method", "mueggler", "--param", "buffer.tau_min_us=5"], "no noise filter")):
+        res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "bad"), "--sensor", "20x16", "--quiet", *bad])
+        assert res.exit_code == 2 and msg in res.output, (bad, res.output)
+
+
+def test_detect_default_display_is_the_reports_primary(tmp_path, edge_events):
+    from evedge.bench.methods import PRIMARY_DISPLAY
+    from evedge.io.detection import read_detection
+
+    ev, _ = edge_events(10, 10, 1000, 0.0)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10", "--quiet"])
+    assert res.exit_code == 0, res.output
+    assert read_detection(tmp_path / "o" / "detection.h5").metadata["display"] == PRIMARY_DISPLAY
+    help_text = " ".join(CliRunner().invoke(detect, ["--help"]).output.split())
+    assert "Default predecessor" in help_text and "primary display" in help_text

@@ -415,7 +415,7 @@ def test_bad_inputs():
     size = SensorSize(8, 8)
     ev = make_events([1, 2], [1, 1], [0, 5], [True, True])
     with pytest.raises(TypeError, match="events"):
-        estimate_lifetimes(ev.astype([("x", "i4"), ("y", "i4"), ("t", "i8"), ("p", "?")]), size)
+        estimate_lifetimes(ev.astype([("x", "f4"), ("y", "i4"), ("t", "i8"), ("p", "?")]), size)
     with pytest.raises(ValueError, match="outside the sensor"):
         estimate_lifetimes(make_events([8], [0], [0], [True]), size)
     with pytest.raises(ValueError, match="not sorted"):

@@ -81,3 +81,55 @@ def test_mueggler_method_runs(edge_events, random_events):
     assert 0 < (~buf.kept).sum()
     assert not buf.lifetimes["valid"][~buf.kept].any()
     assert buf.lifetimes[buf.kept].tobytes() == estimate_lifetimes_mueggler(ev[buf.kept], size, params).tobytes()
+
+
+def test_detector_streams_any_registered_estimator(edge_events, random_events):
+    """The streaming Detector composes mueggler (no filter by default) as it does intra."""
+    from evedge.detector.mueggler import estimate_lifetimes_mueggler
+
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
+    det = Detector(size, method="mueggler", display="lifetime_only")
+    assert det.buffer is None
+    outs = [det.process(c) for c in np.array_split(ev, 7)] + [det.flush()]
+    got = np.concatenate([o[1] for o in outs])
+    assert got.tobytes() == estimate_lifetimes_mueggler(ev, size).tobytes()
+    T = int(ev["t"][-1]) + 1
+    np.testing.assert_array_equal(det.image_at(T), edge_frames(ev, got, size, [T])[0])
+    with pytest.raises(ValueError, match="is of kind 'edges', not 'estimator'"):
+        Detector(size, method="time")
+    with pytest.raises(ValueError, match="unknown method 'nope'"):
+        Detector(size, method="nope")
+
+
+def test_keep_mask_of_a_streaming_only_filter(edge_events, random_events):
+    """A filter without a one-shot mask: the mask is rebuilt from what it releases (here: the buffer itself)."""
+    from evedge.detector.buffer import EventBuffer
+    from evedge.detector.pipeline import keep_mask
+    from evedge.detector.protocols import METHODS, NoiseFilter
+
+    class StreamOnly:
+        kind = "filter"
+
+        def __init__(self, sensor_size, **params):
+            self.inner = EventBuffer(sensor_size, BufferParams(**params))
+
+        def process(self, events):
+            return self.inner.process(events)
+
+        def flush(self):
+            return self.inner.flush()
+
+        def reset(self):
+            self.inner.reset()
+
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
+    name = "tests.stream_only_filter"
+    if name not in METHODS:
+        METHODS.register(name, StreamOnly, kind="filter", source="test")
+    assert isinstance(StreamOnly(size), NoiseFilter)
+    want = filter_events(ev, size, BufferParams(tau_min_us=4000))
+    np.testing.assert_array_equal(keep_mask(name, ev, size, {"tau_min_us": 4000}), want)
+    res = detect(ev, size, filter=name, buffer_params={"tau_min_us": 4000})
+    np.testing.assert_array_equal(res.kept, want)

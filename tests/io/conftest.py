@@ -94,3 +94,67 @@ def _write_aedat4(path: Path, width: int, height: int, packets: list[tuple]) -> 
 def write_aedat4():
     """Return ``write(path, width, height, packets)``; each packet is ``(x, y, t, on)`` columns."""
     return _write_aedat4
+
+
+# AEDAT 2.0 and 3.1 hand-encoded from iniVation's format documents (no writer in evedge or faery)
+
+
+def _aedat2(path, header_lines, addresses, times):
+    head = b"#!AER-DAT2.0\r\n" + b"".join(b"# " + line.encode() + b"\r\n" for line in header_lines)
+    raw = np.empty(len(addresses), dtype=[("a", ">u4"), ("t", ">i4")])
+    raw["a"], raw["t"] = addresses, times
+    path.write_bytes(head + raw.tobytes())
+    return path
+
+
+def _dvs128(x, y, p, ext=0):
+    return (ext << 15) | (y << 8) | (x << 1) | p
+
+
+def _davis(x, y, p, aps=0, ext=0):
+    return (aps << 31) | (y << 22) | (x << 12) | (p << 11) | (ext << 10)
+
+
+def _aedat3(path, packets, header="#Source 1: DAVIS240C\r\n"):
+    data = b"#!AER-DAT3.1\r\n#Format: RAW\r\n" + header.encode() + b"#!END-HEADER\r\n"
+    for kind, overflow, events in packets:
+        if kind == 1:
+            body = np.empty(len(events), dtype=[("d", "<u4"), ("t", "<i4")])
+            body["d"] = [(x << 17) | (y << 2) | (p << 1) | v for x, y, p, v, _ in events]
+            body["t"] = [t for *_, t in events]
+            body, size = body.tobytes(), 8
+        else:
+            body, size = bytes(12 * len(events)), 12
+        n = len(events)
+        data += np.array([(kind, 1, size, 4, overflow, n, n, n)], dtype=[
+            ("a", "<i2"), ("b", "<i2"), ("c", "<i4"), ("d", "<i4"), ("e", "<i4"), ("f", "<i4"), ("g", "<i4"), ("h", "<i4")]).tobytes()
+        data += body
+    path.write_bytes(data)
+    return path
+
+
+def _dvs128(x, y, p, ext=0):
+    return (ext << 15) | (y << 8) | (x << 1) | p
+
+
+def _davis(x, y, p, aps=0, ext=0):
+    return (aps << 31) | (y << 22) | (x << 12) | (p << 11) | (ext << 10)
+
+
+@pytest.fixture
+def aedat2_file():
+    """Return ``write(path, header_lines, addresses, times)``: an AEDAT 2.0 file (big-endian address, time)."""
+    return _aedat2
+
+
+@pytest.fixture
+def aedat3_file():
+    """Return ``write(path, packets, header=...)``; packets are ``(type, ts_overflow, events)``,
+    polarity events ``(x, y, p, valid, t)``."""
+    return _aedat3
+
+
+@pytest.fixture
+def aedat2_address():
+    """The address encoders ``(dvs128(x, y, p, ext), davis(x, y, p, aps, ext))``."""
+    return _dvs128, _davis

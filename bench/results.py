@@ -1,0 +1,293 @@
+"""Results as one long (tidy) table: one row per number.
+
+Columns :data:`COLUMNS`: ``experiment``, ``dataset``, ``reference`` (the truth
+a number is measured against: ``exact``, ``canny_matlab_0.3``, ``truth``,
+``noise_labels``, or ``""``), ``method`` (a registry name: ``intra``,
+``mueggler``, ``time``, ``count`` or a plug-in's), ``variant`` (the compared
+configuration's result key, e.g. ``acc_1ms``, or the method itself),
+``display`` (the display policy, ``""`` when it does not apply), ``section``
+(``slow``, ``fast``, ``all``, a frame index, ...), ``metric`` and ``value``
+(float; NaN when undefined).
+
+Saved as CSV (for people and spreadsheets) and as a columnar HDF5 file (one
+dataset per column, for tools; h5py is already a dependency, so no columnar
+library such as pyarrow is added for this).
+
+Examples
+--------
+>>> t = ResultsTable()
+>>> t.add(experiment="grade", dataset="d", method="intra", metric="median_rel_error", value=0.02)
+>>> t.query(metric="median_rel_error")[0]["value"]
+0.02
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from ._files import write_text_atomic
+
+__all__ = ["COLUMNS", "ResultsTable", "read_results"]
+
+COLUMNS = ("experiment", "dataset", "reference", "method", "variant", "display", "section", "metric", "value")
+_TEXT = COLUMNS[:-1]
+
+
+def _row(fields: Mapping) -> dict:
+    unknown = sorted(set(fields) - set(COLUMNS))
+    if unknown:
+        raise ValueError(f"results row: unknown column(s) {unknown}; columns are {COLUMNS}")
+    for need in ("experiment", "method", "metric"):
+        if not fields.get(need):
+            raise ValueError(f"results row: column {need!r} is required, got {fields.get(need)!r}")
+    row = {c: "" if fields.get(c) is None else str(fields.get(c, "")) for c in _TEXT}
+    if not row["variant"]:
+        row["variant"] = row["method"]
+    value = fields.get("value")
+    try:
+        row["value"] = float("nan") if value is None else float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"results row {row['metric']!r}: value must be a number, got {value!r}") from None
+    return row
+
+
+class ResultsTable:
+    """An append-only long table of results (see the module notes for the columns)."""
+
+    def __init__(self, rows: Iterable[Mapping] = ()) -> None:
+        self.rows: list[dict] = []
+        self.extend(rows)
+
+    def add(self, **fields) -> None:
+        """Append one row (``value`` a number; text columns default to ``""``)."""
+        self.rows.append(_row(fields))
+
+    def extend(self, rows: Iterable[Mapping], **common) -> None:
+        """Append rows, each completed by ``common`` (a row's own fields win)."""
+        for r in rows:
+            self.rows.append(_row({**common, **r}))
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def query(self, **where) -> list[dict]:
+        """Rows whose columns equal ``where`` (a value may be a tuple of accepted values)."""
+        def ok(r):
+            return all(r[k] in v if isinstance(v, tuple) else r[k] == v for k, v in where.items())
+        bad = sorted(set(where) - set(COLUMNS))
+        if bad:
+            raise ValueError(f"query: unknown column(s) {bad}")
+        return [r for r in self.rows if ok(r)]
+
+    def value(self, **where) -> float:
+        """The one value matching ``where``; NaN when none; ``ValueError`` when several."""
+        hits = self.query(**where)
+        if len(hits) > 1:
+            raise ValueError(f"value: {len(hits)} rows match {where}")
+        return hits[0]["value"] if hits else math.nan
+
+    def unique(self, column: str, **where) -> list[str]:
+        """Distinct values of ``column`` among the rows matching ``where``, in first-seen order."""
+        return list(dict.fromkeys(r[column] for r in self.query(**where)))
+
+    # -- files -------------------------------------------------------------------------------
+    def to_csv_text(self) -> str:
+        """CSV with a header row; values with ``repr`` precision (a round trip gives the same floats)."""
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(COLUMNS)
+        for r in self.rows:
+            w.writerow([r[c] for c in _TEXT] + [repr(r["value"])])
+        return buf.getvalue()
+
+    def save(self, stem: str | os.PathLike) -> tuple[Path, Path]:
+        """Write ``STEM.csv`` and ``STEM.h5`` (columnar), each through a temporary file; their paths."""
+        import h5py
+
+        from evedge.io._atomic import atomic_path
+
+        stem = Path(stem)
+        csv_path = write_text_atomic(stem.with_suffix(".csv"), self.to_csv_text())
+        h5_path = stem.with_suffix(".h5")
+        with atomic_path(h5_path) as tmp:
+            with h5py.File(tmp, "w", track_order=True) as f:
+                f.attrs["format"] = "evedge-results"
+                f.attrs["format_version"] = np.int64(1)
+                g = f.create_group("results", track_order=True)
+                text = h5py.string_dtype("utf-8")
+                for c in _TEXT:
+                    g.create_dataset(c, data=np.array([r[c] for r in self.rows], dtype=object), dtype=text,
+                                     track_times=False)
+                g.create_dataset("value", data=np.array([r["value"] for r in self.rows], dtype=np.float64),
+                                 track_times=False)
+        return csv_path, h5_path
+
+
+def read_results(path: str | os.PathLike) -> ResultsTable:
+    """Read a table saved by :meth:`ResultsTable.save` (the ``.csv`` or the ``.h5``).
+
+    Raises
+    ------
+    ValueError
+        Naming the file and the missing column or bad value.
+    """
+    path = Path(path)
+    if path.suffix == ".h5":
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("format") != "evedge-results":
+                raise ValueError(f"{path}: not an evedge results file")
+            g = f["results"]
+            missing = [c for c in COLUMNS if c not in g]
+            if missing:
+                raise ValueError(f"{path}: results lack column(s) {missing}")
+            cols = {c: [v.decode() if isinstance(v, bytes) else str(v) for v in g[c][()]] for c in _TEXT}
+            values = g["value"][()]
+        return ResultsTable({**{c: cols[c][i] for c in _TEXT}, "value": float(values[i])} for i in range(len(values)))
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        if tuple(reader.fieldnames or ()) != COLUMNS:
+            raise ValueError(f"{path}: header {reader.fieldnames} is not {list(COLUMNS)}")
+        table = ResultsTable()
+        for line, r in enumerate(reader, start=2):
+            try:
+                table.add(**r)
+            except ValueError as err:
+                raise ValueError(f"{path}: line {line}: {err}") from None
+        return table
+
+
+# -- the paper experiments' numbers as rows ------------------------------------------------------
+def _method_columns(key: str) -> dict:
+    """method (registry name), variant (result key) and display of a compared method's result key."""
+    from .methods import COMPARED
+
+    c = COMPARED.get(key)
+    if c is None:
+        return {"method": key, "variant": key, "display": ""}
+    return {"method": c.method, "variant": key, "display": c.display or ""}
+
+
+def _number(v):
+    if isinstance(v, bool):
+        return float(v)
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return float(v)
+    if v is None:
+        return math.nan
+    return None
+
+
+def cdm_rows(experiment: str, dataset: str, cdm: Mapping) -> list[dict]:
+    """``cdm[truth][result key][section] = summary`` -> rows ``cdm_<stat>`` (median, q1, q3, mean, n)."""
+    rows = []
+    for ref, per in cdm.items():
+        for key, sections in per.items():
+            for section, summary in sections.items():
+                for stat, v in summary.items():
+                    rows.append({"experiment": experiment, "dataset": dataset, "reference": ref,
+                                 **_method_columns(key), "section": section, "metric": f"cdm_{stat}",
+                                 "value": _number(v)})
+    return rows
+
+
+def real_rows(recording: str, per_method: Mapping) -> list[dict]:
+    """``real[recording][result key] = {cdm_per_frame: {ref: [...]}, median: {ref: v}}`` -> rows."""
+    rows = []
+    for key, r in per_method.items():
+        for ref, values in (r.get("cdm_per_frame") or {}).items():
+            for i, v in enumerate(values):
+                rows.append({"dataset": recording, "reference": ref, **_method_columns(key), "section": f"frame_{i}",
+                             "metric": "cdm", "value": _number(v)})
+        for ref, v in (r.get("median") or {}).items():
+            rows.append({"dataset": recording, "reference": ref, **_method_columns(key), "section": "all",
+                         "metric": "cdm_median", "value": _number(v)})
+    return rows
+
+
+def lifetime_rows(lifetime: Mapping) -> list[dict]:
+    """``lifetime[dataset][method] = {scalars, regions: {region: {scalars}}}`` -> rows (section: region or all)."""
+    rows = []
+    for ds, per in lifetime.items():
+        for key, res in per.items():
+            if key == "truth" or not isinstance(res, Mapping):
+                continue
+            method = {"proposed": "intra"}.get(key, key)
+            variant = key
+            if key.endswith("_on_buffer"):
+                method = key[: -len("_on_buffer")]
+            base = {"dataset": ds, "reference": "truth" if "median_rel_error" in res else "",
+                    "method": method, "variant": variant}
+            for metric, v in res.items():
+                num = _number(v)
+                if num is not None:
+                    rows.append({**base, "section": "all", "metric": metric, "value": num})
+            for group in ("regions", "regions_core"):
+                for region, q in (res.get(group) or {}).items():
+                    for metric, v in (q or {}).items():
+                        num = _number(v)
+                        if num is not None:
+                            rows.append({**base, "section": region if group == "regions" else f"{region}_core",
+                                         "metric": metric, "value": num})
+    return rows
+
+
+def ransac_rows(fmeasure: Mapping) -> list[dict]:
+    """``fmeasure[noise kind][variant] = {noise_px: [...], <metric>: [...]}`` -> one row per noise level."""
+    rows = []
+    for kind, per in fmeasure.items():
+        for variant, r in per.items():
+            levels = r.get("noise_px") or []
+            for metric, values in r.items():
+                if metric in ("noise_px",) or not isinstance(values, (list, tuple)) or len(values) != len(levels):
+                    continue
+                for level, v in zip(levels, values):
+                    num = _number(v)
+                    if num is not None:
+                        rows.append({"dataset": f"synthetic windows, {kind} noise", "reference": "true inliers",
+                                     "method": "intra", "variant": variant, "section": f"noise_{level}",
+                                     "metric": metric, "value": num})
+    return rows
+
+
+def leaderboard(table: ResultsTable, *, metric: str = "cdm_median", experiments=("similarity", "real"),
+                display: str | None = None) -> dict:
+    """Median CDM per method (rows) x (dataset, section, truth) (columns), and the winner of each column.
+
+    Only the primary display's rows of lifetime methods (or ``display``) and
+    non-diagnostic methods enter; a winner is the highest value of its column.
+
+    Returns
+    -------
+    dict
+        ``{"columns": [(dataset, section, reference)], "rows": [(variant, [values])],
+        "winners": {column: variant}}``.
+    """
+    from .methods import COMPARED, PRIMARY_DISPLAY
+
+    display = display or PRIMARY_DISPLAY
+    picked = [r for r in table.rows if r["experiment"] in experiments and r["metric"] == metric
+              and r["display"] in ("", display) and not (r["variant"] in COMPARED and COMPARED[r["variant"]].diagnostic)
+              and r["section"] in ("slow", "fast", "all")]
+    cols = list(dict.fromkeys((r["dataset"], r["section"], r["reference"]) for r in picked
+                              if not (r["experiment"] == "similarity" and r["section"] == "all")))
+    variants = list(dict.fromkeys(r["variant"] for r in picked))
+    cell = {(r["variant"], (r["dataset"], r["section"], r["reference"])): r["value"] for r in picked}
+    rows = [(v, [cell.get((v, c), math.nan) for c in cols]) for v in variants]
+    winners = {}
+    for j, c in enumerate(cols):
+        vals = [(row[1][j], row[0]) for row in rows if math.isfinite(row[1][j])]
+        if vals:
+            winners[c] = max(vals)[1]
+    return {"columns": cols, "rows": rows, "winners": winners}

@@ -1,0 +1,1 @@
+"""The shipped scene files (TOML; schema in sim/SCENES.md), installed as package data ``evedge.scenes``."""

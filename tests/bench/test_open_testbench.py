@@ -1,0 +1,68 @@
+"""The README's example method, taken from the README text, through evedge detect, bench and grade."""
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from evedge.bench.results import read_results
+from evedge.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+TINY = ROOT / "tests" / "data" / "tiny_shapes.toml"
+TARGET = "neighbour_delay:NeighbourDelay"
+DISPLAY_NAME = "neighbour delay (example plug-in)"
+
+
+def readme_example() -> str:
+    text = (ROOT / "README.md").read_text()
+    m = re.search(r"<!-- example: neighbour_delay\.py -->\s*```python\n(.*?)```", text, re.S)
+    assert m, "the README lost its example method"
+    return m.group(1)
+
+
+@pytest.fixture(scope="module")
+def plugin(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("plugin")
+    code = readme_example()
+    assert 25 <= len(code.splitlines()) <= 45  # "about 30 lines"
+    (folder / "neighbour_delay.py").write_text(code)
+    sys.path.insert(0, str(folder))
+    yield folder
+    sys.path.remove(str(folder))
+    sys.modules.pop("neighbour_delay", None)
+
+
+def _run(args):
+    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    return res.output
+
+
+def test_readme_example_through_detect_bench_and_grade(plugin, tmp_path):
+    from evedge.detector.protocols import METHODS
+
+    entry = METHODS.get(TARGET)
+    assert entry.kind == "estimator" and entry.display_name == DISPLAY_NAME
+    data = tmp_path / "tiny.h5"
+    _run(["simulate", TINY, "-o", data])
+    # detect with the plug-in, then grade its output
+    _run(["detect", data, "-o", tmp_path / "det", "--method", TARGET, "--at-frames", "--quiet"])
+    _run(["grade", data, "-d", tmp_path / "det" / "detection.h5", "-o", tmp_path / "graded"])
+    graded = read_results(tmp_path / "graded" / "grade.csv")
+    assert graded.unique("method") == [TARGET]
+    assert 0 < graded.value(metric="share_estimated", reference="truth", section="all") <= 1
+    assert graded.query(metric="median_cdm", reference="exact", section="all")
+    assert DISPLAY_NAME in (tmp_path / "graded" / "report.html").read_text()
+    # the bench compares it beside the paper's methods, on a user's own scene file
+    _run(["bench", "paper", "-o", tmp_path / "cmp", "--quick", "--only", "similarity", "--scene", TINY,
+          "--method", TARGET, "--no-progress"])
+    table = read_results(tmp_path / "cmp" / "results.h5")
+    rows = table.query(method=TARGET, metric="cdm_median", dataset="tiny_shapes")
+    assert {r["display"] for r in rows} == {"predecessor", "lifetime_only"}
+    assert {r["section"] for r in rows} >= {"slow", "fast"}
+    html = (tmp_path / "cmp" / "report.html").read_text()
+    board = html[html.index("<h2>Leaderboard"):html.index("<h2>Do the paper")]
+    assert DISPLAY_NAME in board and "proposed (intra-pixel-area)" in board and "<b>" in board
