@@ -270,7 +270,9 @@ def open_frames_folder(path, *, timestamps=None, rate_hz=None) -> FrameSource:
     path : path-like
         Folder of ``.png``, ``.jpg``, ``.tif``, ... images.
     timestamps : path-like or numpy.ndarray, optional
-        Frame times (s); default the folder's ``timestamps.txt`` when there is one.
+        Frame times (s); default the folder's ``timestamps.txt`` when there is
+        one, else an Event Camera Dataset ``images.txt`` beside the folder
+        (its first column).
     rate_hz : float, optional
         Frame ``k`` at ``k / rate_hz``.
 
@@ -292,8 +294,12 @@ def open_frames_folder(path, *, timestamps=None, rate_hz=None) -> FrameSource:
     files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if len(files) < 2:
         raise FramesError(f"{path}: need at least 2 images ({', '.join(IMAGE_SUFFIXES)}), found {len(files)}")
-    if timestamps is None and rate_hz is None and (path / "timestamps.txt").is_file():
-        timestamps = path / "timestamps.txt"
+    if timestamps is None and rate_hz is None:
+        if (path / "timestamps.txt").is_file():
+            timestamps = path / "timestamps.txt"
+        elif (path.parent / "images.txt").is_file():
+            # an Event Camera Dataset folder: images.txt beside images/, "t images/frame.png" per line
+            timestamps = path.parent / "images.txt"
 
     def read(k):
         img = cv2.imread(str(files[k]), cv2.IMREAD_UNCHANGED)

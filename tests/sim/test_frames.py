@@ -178,6 +178,11 @@ def test_video_and_folder_read_like_arrays(tmp_path):
     assert fold.events.tobytes() == ref.events.tobytes() and fold.metadata["first_frame_s"] == 3.0
     rate = simulate_frames(open_frames_folder(folder, rate_hz=250.0), progress=False)
     assert rate.events.tobytes() == ref.events.tobytes()
+    # an Event Camera Dataset folder: images/ with images.txt ("t images/name.png") beside it
+    (folder / "timestamps.txt").unlink()
+    (tmp_path / "images.txt").write_text("".join(f"{k / 250.0:.9f} frames/{k:04d}.png\n" for k in range(12)))
+    ecd = simulate_frames(open_frames_folder(folder), progress=False)
+    assert ecd.events.tobytes() == ref.events.tobytes()
 
 
 def test_bad_inputs_are_named(tmp_path):
