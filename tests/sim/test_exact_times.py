@@ -192,3 +192,33 @@ def test_geometric_sampling_splits_a_step_hiding_an_excursion():
     got, _ = conv.process(0.1)
     assert want.shape[0] > 50 and conv.n_rejected > 0
     assert got.tobytes() == want.tobytes()
+
+
+def test_crossing_levels_kernel_matches_reference(ref):
+    """The crossings of :func:`_crossing_levels` are the reference's without refractory and jitter."""
+    from evedge.sim._exact import _crossing_levels
+
+    rng = np.random.default_rng(7)
+    n = 400
+    i0 = rng.uniform(0, 1, n)
+    i1 = np.where(rng.random(n) < 0.3, i0, rng.uniform(0, 1, n))
+    eps = 1e-3
+    cpos, cneg = rng.uniform(0.05, 0.4, n), rng.uniform(0.05, 0.4, n)
+    l0 = np.log(i0 + eps)
+    lref = np.clip(l0 - rng.uniform(-0.99, 0.99, n) * cpos, l0 - 0.99 * cpos, l0 + 0.99 * cneg)
+    want, wl, _, _ = ref.ref_convert(i0, i1, 1.0, 1.01, eps, lref, cpos, cneg, np.full(n, -np.inf), 0.0,
+                                     np.zeros(n, np.int64), 0.0, np.uint64(0))
+    state = [lref.copy(), np.exp(lref + cpos), np.exp(lref - cneg)]
+    cand = np.arange(n, dtype=np.int64)
+    e = np.empty(0)
+    m, moved = _crossing_levels(i0, i1, 1.0, 1.01, eps, *state, cpos, cneg, False, cand, n, np.empty(0, np.int64),
+                                e, e, np.empty(0, bool))
+    assert m == len(want) > 50
+    pix, level, t, pol = np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m, bool)
+    _crossing_levels(i0, i1, 1.0, 1.01, eps, *state, cpos, cneg, True, cand, n, pix, level, t, pol)
+    np.testing.assert_array_equal(pix, [w[0] for w in want])
+    np.testing.assert_allclose(t, [w[1] for w in want], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(pol, [w[3] for w in want])
+    np.testing.assert_allclose(state[0], wl, rtol=0, atol=1e-12)
+    # each crossing's level is the reference level it crossed: L interpolated at its time
+    np.testing.assert_allclose(level, l0[pix] + (np.log(i1[pix] + eps) - l0[pix]) * (t - 1.0) / 0.01, atol=1e-9)

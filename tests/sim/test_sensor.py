@@ -157,3 +157,68 @@ def test_effects_on_a_scene_are_deterministic_and_chunk_independent(stripes_dict
     d["events"] = {"noise_resets": 1}
     with pytest.raises(SceneError, match="key 'events.noise_resets': expected true or false"):
         parse_scene(d, "fx.toml")
+
+
+def ref_sensor_interval(l0, l1, t0, t1, lref, cpos, cneg, last_t, refractory_s, noise):
+    """:func:`_sensor_interval` in plain Python: per pixel, segments cut at its noise arrivals.
+
+    ``noise``: list of (pixel, time, polarity). Returns the events (pixel, t, polarity, is_noise)
+    and the new (lref, last_t). No jitter.
+    """
+    lref, last_t = list(lref), list(last_t)
+    out = []
+    for i in range(len(l0)):
+        arrivals = sorted((t, p) for (j, t, p) in noise if j == i) + [(None, None)]
+        ta, la = t0, l0[i]
+        for tn, pn in arrivals:
+            tb = t1 if tn is None else tn
+            lb = l1[i] if tn is None else l0[i] + (l1[i] - l0[i]) * (tb - t0) / (t1 - t0)
+            for sign, c in ((1, cpos[i]), (-1, cneg[i])):
+                while sign * (lb - lref[i]) >= c:
+                    lref[i] += sign * c
+                    tc = ta + (lref[i] - la) / (lb - la) * (tb - ta)
+                    if tc - last_t[i] >= refractory_s:
+                        out.append((i, tc, sign > 0, False))
+                        last_t[i] = tc
+            if tn is None:
+                break
+            if tn - last_t[i] >= refractory_s:
+                out.append((i, tn, pn, True))
+                last_t[i] = tn
+                lref[i] = lb
+            ta, la = tb, lb
+    return out, lref, last_t
+
+
+@pytest.mark.parametrize("refractory_s", [0.0, 0.003])
+def test_sensor_interval_kernel_matches_reference(refractory_s):
+    from evedge.sim._sensor import _sensor_interval
+
+    rng = np.random.default_rng(5)
+    n = 300
+    l0 = rng.uniform(-3, 0, n)
+    l1 = l0 + rng.normal(0, 0.5, n) * (rng.random(n) < 0.7)
+    cpos, cneg = rng.uniform(0.1, 0.3, n), rng.uniform(0.1, 0.3, n)
+    lref = l0 + rng.uniform(-0.9, 0.9, n) * np.minimum(cpos, cneg)
+    last = np.where(rng.random(n) < 0.5, -np.inf, rng.uniform(0.99, 1.0, n))
+    t0, t1 = 1.0, 1.01
+    npix = np.sort(rng.choice(n, 80))
+    nt = rng.uniform(t0, t1, 80)
+    order = np.lexsort((nt, npix))
+    npix, nt, npol = npix[order], nt[order], rng.random(80) < 0.5
+    want, wl, wlast = ref_sensor_interval(l0, l1, t0, t1, lref, cpos, cneg, last, refractory_s,
+                                          list(zip(npix.tolist(), nt.tolist(), npol.tolist())))
+    state = [lref.copy(), last.copy(), np.zeros(n, np.int64)]
+    args = (l0, l1, t0, t1, state[0], cpos, cneg, state[1], refractory_s, state[2], 0.0, np.uint64(1), npix, nt,
+            npol, npix.shape[0])
+    e, b = np.empty(0), np.empty(0, bool)
+    m = _sensor_interval(*args, False, np.empty(0, np.int64), e, e, b, b)
+    assert m == len(want) > 100 and any(w[3] for w in want)
+    out = (np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty(m, bool), np.empty(m, bool))
+    assert _sensor_interval(*args, True, *out) == m
+    np.testing.assert_array_equal(out[0], [w[0] for w in want])
+    np.testing.assert_allclose(out[1], [w[1] for w in want], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(out[3], [w[2] for w in want])
+    np.testing.assert_array_equal(out[4], [w[3] for w in want])
+    np.testing.assert_allclose(state[0], wl, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(state[1], wlast)
