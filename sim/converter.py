@@ -62,7 +62,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
+from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan, _scan_frame
 from ._exact import _crossing_levels, _hidden_crossing, _illinois_start, _illinois_step, _refractory_jitter
 from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
@@ -281,6 +281,7 @@ class EventConverter:
         mode = params.sampling
         # renderers with fixed sample times (frames input): sample exactly there, nothing to verify
         self._fixed = callable(getattr(renderer, "next_sample_s", None))
+        self._source_name = str(getattr(renderer, "name", type(renderer).__name__))
         self._has_flow = bool(getattr(renderer, "has_flow", True))
         if mode == "auto":
             self.verified = bool(getattr(renderer, "continuous_in_time", True))
@@ -336,6 +337,9 @@ class EventConverter:
         else:
             self._i = self._render(0.0)
         self._flow = None
+        if self._fixed and not np.all(np.isfinite(self._i)):
+            raise ValueError(f"{self._source_name}: the first sample has "
+                             f"{int(np.count_nonzero(~np.isfinite(self._i)))} non-finite pixel values")
         self.lref = np.log(self._i + p.log_eps)
         self.e_hi = np.exp(self.lref + self.cpos)
         self.e_lo = np.exp(self.lref - self.cneg)
@@ -439,7 +443,9 @@ class EventConverter:
                 raise ValueError(f"renderer {type(self.renderer).__name__}.next_sample_s({self.t}) returned {t1}, "
                                  "not a later time")
             i1 = self._render(t1)
-            n_cand, _ = self._scan(self._i, i1, self._full_span, 1)
+            n_cand, n_bad = _scan_frame(self._i, i1, p.log_eps, self.e_hi, self.e_lo, self._cand)
+            if n_bad:
+                raise ValueError(f"{self._source_name}: the sample at t = {t1!r} s has {n_bad} non-finite pixel values")
             self._interval(self.t, t1, self._i, i1, n_cand)
             self.t = t1
             self._i = i1

@@ -217,3 +217,15 @@ def test_bad_inputs_are_named(tmp_path):
         simulate_frames(src, progress=False)
     with pytest.raises(ValueError, match="interpolation must be one of"):
         FramesRenderer(src, interpolation="cubic")
+
+
+def test_non_finite_frames_are_named():
+    frames, t = _rendered_frames(6)
+    bad = frames.copy()
+    bad[3, 2, 5] = np.nan
+    with pytest.raises(ValueError, match=r"clip.npy: the sample at t = 0.003 s has 1 non-finite pixel values"):
+        simulate_frames(frames_from_arrays(bad, t, name="clip.npy"), progress=False)
+    bad = frames.copy()
+    bad[0, 0, 0] = np.inf
+    with pytest.raises(ValueError, match="clip.npy: the first sample has 1 non-finite"):
+        simulate_frames(frames_from_arrays(bad, t, name="clip.npy"), progress=False)
