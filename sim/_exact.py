@@ -316,3 +316,34 @@ def _hidden_crossing(i0, im, i1, eps, lref, cpos, cneg, spans, n_spans):
                 if math.floor((lr - math.log(am)) / cneg[i]) > max(0.0, math.floor((lr - math.log(lo)) / cneg[i])):
                     return True
     return False
+
+
+@njit(cache=True)
+def _stripes_truth(x, y, t, height, layer_of_row, nx, ny, vx, vy, phase, period, duty, dark, light,
+                   out_vx, out_vy, out_nx, out_ny):
+    """:meth:`~evedge.sim.planar.StripesRenderer.point_truth` per point (the same arithmetic, in one pass).
+
+    Rows of no layer: zero flow, NaN normal. The normal is that of the
+    nearest stripe boundary, pointing towards the brighter side.
+    """
+    for j in range(x.shape[0]):
+        row = min(max(int(y[j]), 0), height - 1)
+        k = layer_of_row[row]
+        if k < 0:
+            out_vx[j] = 0.0
+            out_vy[j] = 0.0
+            out_nx[j] = np.nan
+            out_ny[j] = np.nan
+            continue
+        out_vx[j] = vx[k]
+        out_vy[j] = vy[k]
+        u = nx[k] * (x[j] - vx[k] * t[j]) + ny[k] * (y[j] - vy[k] * t[j]) - phase[k]
+        p = period[k]
+        r = u - p * math.floor(u / p)
+        d_start = min(r, p - r)
+        d_end = abs(r - duty[k] * p)
+        sign = 1.0 if d_end < d_start else -1.0
+        if dark[k] > light[k]:
+            sign = -sign
+        out_nx[j] = sign * nx[k]
+        out_ny[j] = sign * ny[k]

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
-from ._exact import _shapes_at, _stripes_at
+from ._exact import _shapes_at, _stripes_at, _stripes_truth
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 
@@ -344,15 +344,8 @@ class StripesRenderer(_CoverageRenderer):
         The arithmetic is the renderer's, so at a sample time the values are
         those of :meth:`intensity` to the bit.
         """
-        if self._layer_arrays is None:
-            cols = [[layer.normal[0] for layer in self.layers], [layer.normal[1] for layer in self.layers],
-                    [layer.velocity_px_s[0] for layer in self.layers], [layer.velocity_px_s[1] for layer in self.layers],
-                    [layer.phase_px for layer in self.layers], [layer.period_px for layer in self.layers],
-                    [layer.duty for layer in self.layers], [layer.dark for layer in self.layers],
-                    [layer.light for layer in self.layers]]
-            self._layer_arrays = [np.array(c, dtype=np.float64) for c in cols]
         out = np.empty(pix.shape[0])
-        _stripes_at(pix, np.asarray(t_s, dtype=np.float64), self.width, self._layer_of_row, *self._layer_arrays,
+        _stripes_at(pix, np.asarray(t_s, dtype=np.float64), self.width, self._layer_of_row, *self._layers(),
                     self.background, out)
         return out
 
@@ -367,35 +360,26 @@ class StripesRenderer(_CoverageRenderer):
     def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
         return max([math.hypot(*layer.velocity_px_s) for layer in self.layers], default=0.0)
 
+    def _layers(self):
+        """Per-layer parameters as float64 arrays (for the kernels)."""
+        if self._layer_arrays is None:
+            cols = [[layer.normal[0] for layer in self.layers], [layer.normal[1] for layer in self.layers],
+                    [layer.velocity_px_s[0] for layer in self.layers], [layer.velocity_px_s[1] for layer in self.layers],
+                    [layer.phase_px for layer in self.layers], [layer.period_px for layer in self.layers],
+                    [layer.duty for layer in self.layers], [layer.dark for layer in self.layers],
+                    [layer.light for layer in self.layers]]
+            self._layer_arrays = [np.array(c, dtype=np.float64) for c in cols]
+        return self._layer_arrays
+
     def point_truth(self, x, y, t_s):
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        t_s = np.asarray(t_s, dtype=np.float64)
-        vx = np.zeros_like(x)
-        vy = np.zeros_like(x)
-        nx = np.full_like(x, np.nan)
-        ny = np.full_like(x, np.nan)
-        rows = np.clip(y.astype(np.int64), 0, self.height - 1)
-        k_of = self._layer_of_row[rows]
-        for k, layer in enumerate(self.layers):
-            sel = k_of == k
-            if not np.any(sel):
-                continue
-            n0, n1 = layer.normal
-            v0, v1 = layer.velocity_px_s
-            vx[sel] = v0
-            vy[sel] = v1
-            u = n0 * (x[sel] - v0 * t_s[sel]) + n1 * (y[sel] - v1 * t_s[sel]) - layer.phase_px
-            r = np.mod(u, layer.period_px)
-            dp = layer.duty * layer.period_px
-            # boundaries at r = 0 and r = period (light -> dark along +n) and r = dp (dark -> light)
-            d_start = np.minimum(r, layer.period_px - r)
-            d_end = np.abs(r - dp)
-            sign = np.where(d_end < d_start, 1.0, -1.0)
-            if layer.dark > layer.light:
-                sign = -sign
-            nx[sel] = sign * n0
-            ny[sel] = sign * n1
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        t_s = np.ascontiguousarray(np.broadcast_to(np.asarray(t_s, dtype=np.float64), x.shape))
+        vx, vy, nx, ny = (np.empty_like(x) for _ in range(4))
+        # the stripe coordinate u = n . (p - v t) - phase; boundaries at r = 0 and r = period (light -> dark
+        # along +n) and r = duty * period (dark -> light); the normal of the nearer one, towards brighter
+        _stripes_truth(x.ravel(), y.ravel(), t_s.ravel(), self.height, self._layer_of_row, *self._layers(),
+                       vx.ravel(), vy.ravel(), nx.ravel(), ny.ravel())
         return vx, vy, nx, ny
 
     def close(self) -> None:
