@@ -25,7 +25,9 @@ Adaptive sampling, two modes (``sampling``):
   ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
   differences of the current sample, capped as above by ``1 / min_rate_hz``
   and ``max_step_px / v_max``.
-- ``"geometric"`` (exact crossing times only): steps of
+- ``"geometric"`` (exact crossing times only; what ``"auto"`` picks for a
+  renderer whose pixels are monotone in time over a step of ``max_step_px``,
+  ``monotone_step_px``, as the stripes are): steps of
   ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (the times do
   not need it), halved while the step's midpoint shows an excursion that
   hides a crossing (a pixel beyond a level that neither end reaches); an
@@ -302,7 +304,10 @@ class EventConverter:
             raise ValueError("ConverterParams.sampling='geometric' needs exact crossing times (a renderer with "
                              "pixel_intensity and point_truth, no sensor effects)")
         # exact crossing times do not need the lambda rule: only the geometric bound on the step
-        self.geometric_steps = mode == "geometric"
+        # "auto": geometric too where the renderer guarantees monotone pixels over a max_step_px step
+        # (then no crossing can hide inside a step and the lambda rule buys nothing)
+        self.geometric_steps = mode == "geometric" or (
+            mode == "auto" and self.exact and params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0)))
         if self.geometric_steps:
             self.verified = False
         self.reset()

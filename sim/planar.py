@@ -338,6 +338,25 @@ class StripesRenderer(_CoverageRenderer):
         # rows of no layer are never written: they keep the background of the first fill
         return self._draw(t_s, out, self._edge_buffer())
 
+    @property
+    def monotone_step_px(self) -> float:
+        """Largest image displacement over which every pixel's intensity is monotone in time.
+
+        Each layer's edges are straight and move at a constant velocity, so a
+        pixel whose square meets one edge only sees its coverage change one
+        way. The square spans at most ``|nx| + |ny|`` along the normal; with
+        stripes and gaps at least ``w`` wide, a displacement below
+        ``w - (|nx| + |ny|)`` never brings a second edge into it. The
+        converter samples such renderers by ``max_step_px`` alone when exact
+        crossing times are on (see :mod:`evedge.sim.converter`).
+        """
+        out = math.inf
+        for layer in self.layers:
+            nx, ny = layer.normal
+            width = min(layer.duty, 1.0 - layer.duty) * layer.period_px
+            out = min(out, width - (abs(nx) + abs(ny)))
+        return max(0.0, out)
+
     def pixel_intensity(self, pix: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Exact intensity of flat pixels ``pix`` at times ``t_s`` (as :meth:`ShapesRenderer.pixel_intensity`).
 

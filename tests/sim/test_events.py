@@ -154,16 +154,16 @@ def test_threshold_mismatch_is_per_pixel_and_seeded():
     assert a.cpos[0] != a.cneg[0]
 
 
-def _stripes_events(stripes_dict, lam, crossing_times="linear"):
+def _stripes_events(stripes_dict, lam, crossing_times="linear", sampling="auto"):
     d = stripes_dict(width=24, height=6, duration_s=0.15, velocity_px_s=[150.0, 40.0], angle_deg=20.0)
-    d["events"]["crossing_times"] = crossing_times
+    d["events"].update(crossing_times=crossing_times, sampling=sampling)
     return simulate(parse_scene(d, "lam.toml"), progress=False, frame_rate_hz=0, lambda_=lam)
 
 
 def test_halving_lambda_does_not_move_exact_times(stripes_dict):
     """Exact crossing times do not depend on the sampling: the same events, times within 1 ns."""
-    a = _stripes_events(stripes_dict, 0.5, "auto")
-    b = _stripes_events(stripes_dict, 0.25, "auto")
+    a = _stripes_events(stripes_dict, 0.5, "auto", "verified")
+    b = _stripes_events(stripes_dict, 0.25, "auto", "verified")
     assert a.metadata["n_samples"] < b.metadata["n_samples"]
     assert a.events.tobytes() == b.events.tobytes()
     assert np.abs(a.truth["t_ns"] - b.truth["t_ns"]).max() <= 1

@@ -163,9 +163,18 @@ def test_pixel_intensity_is_the_rendered_image(name):
 
 def test_geometric_sampling_same_events_on_stripes_with_fewer_samples(stripes_dict):
     d = stripes_dict(width=24, height=6, duration_s=0.1, velocity_px_s=[150.0, 40.0], angle_deg=20.0)
+    d["events"]["sampling"] = "verified"
     ver = simulate(parse_scene(d, "v.toml"), progress=False, frame_rate_hz=0)
     d["events"]["sampling"] = "geometric"
     geo = simulate(parse_scene(d, "g.toml"), progress=False, frame_rate_hz=0)
+    # "auto" picks geometric steps for stripes: their pixels are monotone over a 0.5 px step
+    d["events"]["sampling"] = "auto"
+    auto = simulate(parse_scene(d, "a.toml"), progress=False, frame_rate_hz=0)
+    assert auto.events.tobytes() == geo.events.tobytes()
+    d["events"]["max_step_px"] = 5.0  # beyond the stripes' monotone displacement: verified steps
+    assert simulate(parse_scene(d, "a.toml"), progress=False, frame_rate_hz=0).metadata["n_samples"] > \
+        geo.metadata["n_samples"]
+    d["events"].update(sampling="geometric", max_step_px=0.5)
     assert geo.metadata["n_samples"] < ver.metadata["n_samples"] / 2
     # the same events; times within 1 ns (so a time on a half microsecond may round to the other us)
     a, b = (np.lexsort((r.truth["t_ns"], r.events["p"], r.events["x"], r.events["y"])) for r in (geo, ver))
@@ -222,3 +231,11 @@ def test_crossing_levels_kernel_matches_reference(ref):
     np.testing.assert_allclose(state[0], wl, rtol=0, atol=1e-12)
     # each crossing's level is the reference level it crossed: L interpolated at its time
     np.testing.assert_allclose(level, l0[pix] + (np.log(i1[pix] + eps) - l0[pix]) * (t - 1.0) / 0.01, atol=1e-9)
+
+
+def test_stripes_monotone_step():
+    from evedge.sim.planar import StripeLayer, StripesRenderer
+
+    r = StripesRenderer(10, 4, [StripeLayer((0, 2), 12.0, 0.0, (5.0, 0.0)),
+                                StripeLayer((2, 4), 10.0, math.radians(45), (5.0, 0.0), duty=0.2)])
+    assert r.monotone_step_px == pytest.approx(2.0 - math.sqrt(2))  # the 2 px stripes of the 45 deg layer
