@@ -98,6 +98,11 @@ def read_timestamps(path) -> np.ndarray:
     FramesError
         Unreadable file, a line that is not a number (its number named), or
         times that do not increase.
+
+    Examples
+    --------
+    >>> read_timestamps("frames/timestamps.txt")  # doctest: +SKIP
+    array([0.   , 0.001, 0.002])
     """
     path = Path(path)
     try:
@@ -236,6 +241,11 @@ def open_video(path, *, timestamps=None, rate_hz=None) -> FrameSource:
         Missing or undecodable file, fewer than 2 frames, container times that
         do not increase (give ``rate_hz`` or ``timestamps`` instead), a
         timestamp count that does not match.
+
+    Examples
+    --------
+    >>> rec = simulate_frames(open_video("clip.mp4"), progress=False)  # doctest: +SKIP
+    >>> rec = simulate_frames(open_video("clip.avi", rate_hz=240.0), progress=False)  # doctest: +SKIP
     """
     import cv2
 
@@ -282,6 +292,12 @@ def open_frames_folder(path, *, timestamps=None, rate_hz=None) -> FrameSource:
     FramesError
         Not a folder, fewer than 2 images, an unreadable image (named), no
         frame times.
+
+    Examples
+    --------
+    >>> src = open_frames_folder("slider_depth/images")  # doctest: +SKIP
+    >>> len(src), src.times_s[1]  # times from slider_depth/images.txt  # doctest: +SKIP
+    (87, 0.038766001)
     """
     import cv2
 
