@@ -330,6 +330,14 @@ def frames_from_arrays(frames, times_s, name: str = "<frames>") -> FrameSource:
     frames = np.asarray(frames)
     if frames.ndim != 3:
         raise FramesError(f"{name}: expected frames of shape (n, height, width), got {frames.shape}")
+    try:
+        times_s = np.asarray(times_s, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise FramesError(f"{name}: times_s must be numbers (seconds), got {times_s!r}") from None
+    if times_s.shape != (frames.shape[0],):
+        raise FramesError(f"{name}: {frames.shape[0]} frames but times_s has shape {times_s.shape}")
+    if not np.all(np.isfinite(times_s)):
+        raise FramesError(f"{name}: times_s must be finite")
     return FrameSource(times_s, frames.shape[2], frames.shape[1], name,
                        lambda k: _grey(frames[k], f"{name}: frame {k}"))
 
@@ -536,8 +544,16 @@ def simulate_frames(source: FrameSource, params=None, *, seed: int = 0, log_inpu
     from .converter import ConverterParams, EventConverter
     from .simulate import _versions
 
+    if not isinstance(source, FrameSource):
+        raise TypeError("simulate_frames: source must be a FrameSource (open_video, open_frames_folder or "
+                        f"frames_from_arrays), got {type(source).__name__}")
     if params is None:
         params = ConverterParams()
+    if not isinstance(params, ConverterParams):
+        raise TypeError(f"simulate_frames: params must be a ConverterParams, got {type(params).__name__}")
+    if not (isinstance(chunk_s, (int, float)) and not isinstance(chunk_s, bool) and math.isfinite(chunk_s)
+            and chunk_s > 0):
+        raise ValueError(f"simulate_frames: chunk_s must be > 0, got {chunk_s!r}")
     renderer = FramesRenderer(source, log_input=log_input, eps=params.log_eps, upsample=upsample,
                               interpolation=interpolation, resize=resize)
     try:

@@ -229,3 +229,27 @@ def test_non_finite_frames_are_named():
     bad[0, 0, 0] = np.inf
     with pytest.raises(ValueError, match="clip.npy: the first sample has 1 non-finite"):
         simulate_frames(frames_from_arrays(bad, t, name="clip.npy"), progress=False)
+
+
+def test_frames_api_refuses_bad_arguments(tmp_path):
+    frames, t = _rendered_frames(4)
+    with pytest.raises(FramesError, match="clip: 4 frames but times_s has shape \\(3,\\)"):
+        frames_from_arrays(frames, t[:3], name="clip")
+    with pytest.raises(FramesError, match="frame 2 at 0.001 s follows 0.002 s"):
+        frames_from_arrays(frames, [0.0, 0.002, 0.001, 0.003])
+    with pytest.raises(FramesError, match="expected frames of shape \\(n, height, width\\)"):
+        frames_from_arrays(frames[0], t)
+    with pytest.raises(TypeError, match="source must be a FrameSource"):
+        simulate_frames(frames, progress=False)
+    with pytest.raises(TypeError, match="params must be a ConverterParams"):
+        simulate_frames(frames_from_arrays(frames, t), {"contrast_pos": 0.2}, progress=False)
+    with pytest.raises(ValueError, match="upsample must be an integer in 1..1000"):
+        simulate_frames(frames_from_arrays(frames, t), upsample=0, progress=False)
+    import cv2
+
+    for k in range(2):
+        cv2.imwrite(str(tmp_path / f"{k}.png"), np.zeros((3, 3), np.uint8))
+    with pytest.raises(FramesError, match="rate_hz must be a positive number, got -1.0"):
+        open_frames_folder(tmp_path, rate_hz=-1.0)
+    with pytest.raises(FramesError, match="give timestamps or rate_hz, not both"):
+        open_frames_folder(tmp_path, rate_hz=10.0, timestamps=np.array([0.0, 1.0]))
