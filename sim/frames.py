@@ -125,6 +125,10 @@ def read_timestamps(path) -> np.ndarray:
 
 
 def _check_times(t: np.ndarray, source: str) -> np.ndarray:
+    if t.ndim != 1:
+        raise FramesError(f"{source}: frame times must be 1-D, got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise FramesError(f"{source}: frame {int(np.flatnonzero(~np.isfinite(t))[0])} has a non-finite time")
     if t.shape[0] < 2:
         raise FramesError(f"{source}: need at least 2 frame times, got {t.shape[0]}")
     bad = np.flatnonzero(np.diff(t) <= 0)
