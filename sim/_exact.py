@@ -5,7 +5,7 @@ samples the converter needs a pixel's intensity at any instant to solve for
 the exact moment its log intensity crosses a threshold. These kernels
 evaluate the closed-form pixel-area intensity of one pixel at one time per
 entry (the same coverage formulas as :mod:`evedge.sim._coverage`: stripes by
-the projected-square CDF, polygons by clipping against the pixel square,
+the projected-square CDF, polygons by the signed area of each edge in the pixel's row band,
 disks by the circle/triangle decomposition), and :func:`_illinois_step`
 advances a bracketed regula falsi (Illinois variant) on
 ``f(t) = I(t) - (exp(level) - eps)`` for many crossings at once.
@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._coverage import _HALF_DIAG, _disk_box_area, _polygon_box_area, _stripe_dark_fraction
+from ._coverage import _HALF_DIAG, _disk_box_area, _stripe_dark_fraction
 from ._events import _half_normal
 
 
@@ -56,6 +56,58 @@ def _stripes_at(pix, t, width, layer_of_row, nx, ny, vx, vy, phase, period, duty
 
 
 @njit(cache=True)
+def _polygon_pixel_coverage(vx, vy, n, x, y):
+    """Exact area of the polygon ``(vx, vy)[:n]`` inside pixel ``(x, y)`` (its square ``[x-0.5, x+0.5]^2``).
+
+    The rasteriser's decomposition (:func:`~evedge.sim._coverage._accumulate_edge`)
+    for one cell: each edge crossing the pixel's row band adds
+    ``dir * mean_Y clamp(x + 0.5 - x_edge(Y), 0, 1)`` over the band (the part
+    of the pixel's row right of the edge); edges left of the pixel add the full
+    band, edges right of it nothing; the absolute sum is the coverage. One
+    pass over the edges, no clipping buffers.
+    """
+    total = 0.0
+    # pixel-corner coordinates: the pixel spans [c, c + 1] x [r, r + 1]
+    c = float(x)
+    r = float(y)
+    j = n - 1
+    for i in range(n):
+        x0 = vx[j] + 0.5
+        y0 = vy[j] + 0.5
+        x1 = vx[i] + 0.5
+        y1 = vy[i] + 0.5
+        j = i
+        if y0 == y1:
+            continue
+        direction = 1.0
+        if y0 > y1:
+            x0, y0, x1, y1 = x1, y1, x0, y0
+            direction = -1.0
+        ya = max(r, y0)
+        yb = min(r + 1.0, y1)
+        if yb <= ya:
+            continue
+        dxdy = (x1 - x0) / (y1 - y0)
+        xa = x0 + (ya - y0) * dxdy
+        xb = x0 + (yb - y0) * dxdy
+        if xa > xb:
+            xa, xb = xb, xa
+        d = direction * (yb - ya)
+        span = xb - xa
+        if span > 0.0:
+            # mean over x in [xa, xb] of clamp(c + 1 - x, 0, 1), piece by piece (1 left of c, the ramp on
+            # [c, c + 1], 0 beyond): lengths over span, no cancellation for short spans
+            left = max(0.0, min(xb, c) - xa)
+            a2 = max(xa, c)
+            b2 = min(xb, c + 1.0)
+            ramp = (b2 - a2) * (c + 1.0 - 0.5 * (a2 + b2)) if b2 > a2 else 0.0
+            total += d * (left + ramp) / span
+        else:
+            total += d * min(1.0, max(0.0, c + 1.0 - xa))
+    return min(1.0, abs(total))
+
+
+@njit(cache=True)
 def _motion_state(m, t):
     """``theta, sx, sy`` of :meth:`~evedge.sim.motion.PlanarMotion._state_scalar` at ``t`` (same formulas, same order).
 
@@ -86,11 +138,6 @@ def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values
         nmax = max(nmax, starts[k + 1] - starts[k])
     vx = np.empty(nmax)
     vy = np.empty(nmax)
-    s = 6 * nmax + 16
-    ax = np.empty(s)
-    ay = np.empty(s)
-    bx = np.empty(s)
-    by = np.empty(s)
     for j in range(pix.shape[0]):
         i = pix[j]
         y = i // width
@@ -112,7 +159,7 @@ def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values
                 dy = qy[starts[k] + v] - center_y
                 vx[v] = center_x + c * dx - sn * dy + sx
                 vy[v] = center_y + sn * dx + c * dy + sy
-            cov = min(1.0, _polygon_box_area(vx, vy, n, x - 0.5, y - 0.5, x + 0.5, y + 0.5, ax, ay, bx, by))
+            cov = _polygon_pixel_coverage(vx, vy, n, x, y)
             if cov > 0.0:
                 value += cov * (values[k] - background)
         for k in range(radii.shape[0]):
