@@ -213,43 +213,61 @@ def _illinois_start(ia, ib, target, shift, ta, tb, fa, fb, tc, active):
 
 
 @njit(cache=True)
-def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, tol_s, tol_i, active):
-    """One Illinois step for the active crossings ``idx``, given ``ic = I(tc[idx])``; returns the number left.
+def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, tol_s, tol_i, tol_t, active):
+    """One regula falsi step for the active crossings ``idx``, given ``ic = I(tc[idx])``; returns the number left.
 
-    The bracket ``[ta, tb]`` keeps a sign change of ``f``; the new point
-    replaces the end of its sign, and when the same end is kept twice in a
-    row the other end's ``f`` is halved (the Illinois modification:
-    superlinear), and after three moves of one end in a row the step is a
-    bisection (a safeguard: never much slower than bisection). The function is the
-    intensity, not its log (the same root: the log is monotone), because it
-    is linear in time wherever an edge crosses a pixel along a row, where
-    regula falsi is exact in one step. A crossing is done when its bracket is
-    narrower than ``tol_s`` or ``|f(tc)| <= tol_i``; its time is ``tc``.
+    The bracket ``[ta, tb]`` keeps a sign change of ``f`` (``ta`` on the side
+    of the start, where the level is not reached yet); the new point
+    replaces the end of its sign, and when the same end is replaced twice in
+    a row the other end's ``f`` is scaled by ``1 - f_new / f_old``
+    (Anderson-Bjorck; by 1/2 when that is not positive: Illinois), and after
+    three in a row the step is a bisection (a safeguard: never much slower
+    than bisection). The function is the intensity, not its log (the same
+    root: the log is monotone), because it is linear in time wherever an edge
+    crosses a pixel along a row, where regula falsi is exact in one step.
+
+    A crossing is done when its bracket is narrower than ``tol_s``, or
+    ``|f(tc)| <= tol_i``, or ``tc`` has not reached the level and the secant
+    through the last two evaluations (``tp``, ``fp``: the previous one) puts
+    the root at most ``tol_t`` after it (then ``tc`` moves to that secant
+    root, whose error is second order in ``tol_t``). Its time is ``tc``.
     """
-    m = 0
+    left = 0
     for q in range(idx.shape[0]):
         j = idx[q]
         fc = ic[q] - target[j]
         if abs(fc) <= tol_i:
             active[j] = False
             continue
+        not_reached = (fc > 0.0) == (fa[j] > 0.0)
+        if not_reached and fc != fp[j]:
+            # the secant through the last two evaluations: the root is ``step`` after ``tc``
+            step = -fc * (tc[j] - tp[j]) / (fc - fp[j])
+            if 0.0 <= step <= tol_t and tc[j] + step < tb[j]:
+                tc[j] += step  # second-order accurate: the error is far below tol_t
+                active[j] = False
+                continue
+        tp[j] = tc[j]
+        fp[j] = fc
         # side: -k / +k when the low / high end moved the last k times in a row
-        if (fc > 0.0) == (fa[j] > 0.0):
-            ta[j] = tc[j]
-            fa[j] = fc
+        if not_reached:
             if side[j] < 0:
-                fb[j] *= 0.5
+                scale = 1.0 - fc / fa[j]
+                fb[j] *= scale if scale > 0.0 else 0.5
                 side[j] -= 1
             else:
                 side[j] = -1
+            ta[j] = tc[j]
+            fa[j] = fc
         else:
-            tb[j] = tc[j]
-            fb[j] = fc
             if side[j] > 0:
-                fa[j] *= 0.5
+                scale = 1.0 - fc / fb[j]
+                fa[j] *= scale if scale > 0.0 else 0.5
                 side[j] += 1
             else:
                 side[j] = 1
+            tb[j] = tc[j]
+            fb[j] = fc
         if tb[j] - ta[j] <= tol_s:
             tc[j] = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
             active[j] = False
@@ -262,8 +280,8 @@ def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, tol_s, tol_i, acti
             t = 0.5 * (ta[j] + tb[j])
             side[j] = 0
         tc[j] = t
-        m += 1
-    return m
+        left += 1
+    return left
 
 
 @njit(cache=True)

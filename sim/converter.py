@@ -88,6 +88,9 @@ SAMPLING = ("auto", "verified", "predicted", "geometric")
 CROSSING_TIMES = ("auto", "exact", "linear")
 #: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
 EXACT_TOL_S = 1e-10
+#: ... or when the secant through the last two evaluations puts the root this close (s) after the point
+#: (the secant root is then taken: its error is second order, far below a nanosecond).
+EXACT_TOL_T = 1e-9
 #: ... or when the intensity is this close to the (shifted) level's (a time error <= 1e-13 / |dI/dt| s).
 EXACT_TOL_I = 1e-13
 #: The level's intensity is moved this far towards the start value, so that the root is the first
@@ -667,8 +670,8 @@ class EventConverter:
         the root of ``f(t) = I_i(t) - (exp(l) - eps)`` in ``[t0, t1]``, where
         ``I_i(t)`` is the renderer's closed-form pixel-area intensity
         (``pixel_intensity``) and ``f(t0)``, ``f(t1)`` (from the samples) have
-        opposite signs; found by the Illinois variant of regula falsi to a
-        bracket of :data:`EXACT_TOL_S`, all crossings at once (one
+        opposite signs; found by regula falsi (Anderson-Bjorck variant, with a
+        bisection safeguard) to :data:`EXACT_TOL_S` / :data:`EXACT_TOL_T`, all crossings at once (one
         ``pixel_intensity`` call per step). The refractory period and the
         jitter then act on the exact times, per pixel in time order, as in the
         linear path. Each crossing's time depends only on its own bracket, so
@@ -689,11 +692,13 @@ class EventConverter:
         side = np.zeros(n, dtype=np.int8)
         target = np.exp(level) - p.log_eps  # the intensity of the level: the same root, found faster
         left = _illinois_start(ia, ib, target, EXACT_SHIFT_I, ta, tb, fa, fb, tc, active)
+        tp, fp = tb.copy(), fb.copy()  # the previous evaluation of each crossing (first: the end of the bracket)
         steps = 0
         while left and steps < _EXACT_MAX_STEPS:
             idx = np.flatnonzero(active)
             ic = np.ascontiguousarray(self.renderer.pixel_intensity(pix[idx], tc[idx]), dtype=np.float64)
-            left = _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, side, EXACT_TOL_S, EXACT_TOL_I, active)
+            left = _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, EXACT_TOL_S, EXACT_TOL_I,
+                                  EXACT_TOL_T, active)
             steps += 1
         self.n_root_steps += steps
         keep = np.empty(n, dtype=np.bool_)
