@@ -7,7 +7,7 @@ evaluate the closed-form pixel-area intensity of one pixel at one time per
 entry (the same coverage formulas as :mod:`evedge.sim._coverage`: stripes by
 the projected-square CDF, polygons by the signed area of each edge in the pixel's row band,
 disks by the circle/triangle decomposition), and :func:`_illinois_step`
-advances a bracketed regula falsi (Illinois variant) on
+advances a bracketed regula falsi (Anderson-Bjorck variant) on
 ``f(t) = I(t) - (exp(level) - eps)`` for many crossings at once.
 """
 

@@ -97,7 +97,7 @@ EXACT_TOL_I = 1e-13
 #: instant the level is reached (a time bias of 1e-11 / |dI/dt| s; where the intensity only touches
 #: the level, as on returning to a plateau, sqrt(1e-11 / a) for I = a (t - t*)^2, tens of ns).
 EXACT_SHIFT_I = 1e-11
-#: ... or after this many Illinois steps (a safeguard; about 10 are needed).
+#: ... or after this many steps (a safeguard; about 4 are needed on average, a few dozen at worst).
 _EXACT_MAX_STEPS = 100
 
 
