@@ -6,7 +6,7 @@ the exact moment its log intensity crosses a threshold. These kernels
 evaluate the closed-form pixel-area intensity of one pixel at one time per
 entry (the same coverage formulas as :mod:`evedge.sim._coverage`: stripes by
 the projected-square CDF, polygons by the signed area of each edge in the pixel's row band,
-disks by the circle/triangle decomposition), and :func:`_illinois_step`
+disks by the circle/triangle decomposition), and :func:`_root_step`
 advances a bracketed regula falsi (Anderson-Bjorck variant) on
 ``f(t) = I(t) - (exp(level) - eps)`` for many crossings at once.
 """
@@ -183,7 +183,7 @@ def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values
 
 
 @njit(cache=True)
-def _illinois_start(ia, ib, target, shift, ta, tb, fa, fb, tc, active):
+def _root_start(ia, ib, target, shift, ta, tb, fa, fb, tc, active):
     """Start the brackets: ``f = I - target`` at both ends; returns the number still active.
 
     ``target`` is first moved by ``shift`` towards the start value ``ia``
@@ -213,7 +213,7 @@ def _illinois_start(ia, ib, target, shift, ta, tb, fa, fb, tc, active):
 
 
 @njit(cache=True)
-def _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, tol_s, tol_i, tol_t, active):
+def _root_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, tol_s, tol_i, tol_t, active):
     """One regula falsi step for the active crossings ``idx``, given ``ic = I(tc[idx])``; returns the number left.
 
     The bracket ``[ta, tb]`` keeps a sign change of ``f`` (``ta`` on the side

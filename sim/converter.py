@@ -65,7 +65,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan, _scan_frame
-from ._exact import _crossing_levels, _hidden_crossing, _illinois_start, _illinois_step, _refractory_jitter
+from ._exact import _crossing_levels, _hidden_crossing, _root_start, _root_step, _refractory_jitter
 from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
@@ -691,13 +691,13 @@ class EventConverter:
         active = np.empty(n, dtype=np.bool_)
         side = np.zeros(n, dtype=np.int8)
         target = np.exp(level) - p.log_eps  # the intensity of the level: the same root, found faster
-        left = _illinois_start(ia, ib, target, EXACT_SHIFT_I, ta, tb, fa, fb, tc, active)
+        left = _root_start(ia, ib, target, EXACT_SHIFT_I, ta, tb, fa, fb, tc, active)
         tp, fp = tb.copy(), fb.copy()  # the previous evaluation of each crossing (first: the end of the bracket)
         steps = 0
         while left and steps < _EXACT_MAX_STEPS:
             idx = np.flatnonzero(active)
             ic = np.ascontiguousarray(self.renderer.pixel_intensity(pix[idx], tc[idx]), dtype=np.float64)
-            left = _illinois_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, EXACT_TOL_S, EXACT_TOL_I,
+            left = _root_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, EXACT_TOL_S, EXACT_TOL_I,
                                   EXACT_TOL_T, active)
             steps += 1
         self.n_root_steps += steps
