@@ -244,7 +244,7 @@ def _as_lifetimes(t: np.ndarray) -> np.ndarray:
 
 def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: int = 0,
                  real_path=None, sim_duration_s: float | None = None, datasets=("stripes_real", "stripes_sim"),
-                 recordings: dict | None = None, data_dir=None) -> dict:
+                 recordings: dict | None = None, data_dir=None, scene="stripes") -> dict:
     """Lifetime histograms, accumulated lifetime images and errors on the stripes data.
 
     Parameters
@@ -264,6 +264,8 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         Precomputed recordings by dataset name (skips reading/simulating).
     data_dir : path, optional
         Folder of the real recordings (default ``$EVEDGE_DATA``, else ``../shared/realdata``).
+    scene : str or path
+        Scene simulated for ``stripes_sim``: a shipped scene's name (default ``stripes``) or a TOML file.
 
     Returns
     -------
@@ -280,7 +282,7 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
         rec = recordings.get(name)
         if rec is None:
             try:
-                rec = _load(name, quick=quick, progress=progress, seed=seed, real_path=real_path,
+                rec = _load(name, quick=quick, progress=progress, seed=seed, real_path=real_path, scene=scene,
                             sim_duration_s=sim_duration_s)
             except FileNotFoundError as exc:  # real data absent: run the rest, say so
                 skipped[name] = str(exc)
@@ -318,7 +320,7 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
     return out
 
 
-def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_duration_s):
+def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_duration_s, scene="stripes"):
     if name == "stripes_real":
         from evedge.io import read_events
 
@@ -327,7 +329,7 @@ def _load(name: str, *, quick: bool, progress: bool, seed: int, real_path, sim_d
             raise FileNotFoundError(f"run_lifetime: stripes recording not found: {path}")
         return read_events(path)
     if name == "stripes_sim":
-        return simulate_scene("stripes", seed=seed, duration_s=sim_duration_s, progress=progress)
+        return simulate_scene(scene, seed=seed, duration_s=sim_duration_s, progress=progress)
     raise ValueError(f"run_lifetime: unknown dataset {name!r} (stripes_real or stripes_sim)")
 
 
@@ -418,6 +420,7 @@ def plot_regions(axes, name: str, res: dict, arrays: dict) -> None:
             if tl:
                 ax.axvline(tl, color="k", lw=1.5, ls="--", label="true lifetime")
             _log_ms_axis(ax)
+            ax.set_ylabel("density (per lifetime)")
         n_rows = len(regions["rows"][reg])
         ax.set_title(f"{name}, {reg} region ({n_rows} rows)", fontsize=9)
         ax.legend(fontsize=7)

@@ -333,6 +333,16 @@ def run_ransac_study(out_dir, *, params: RansacStudyParams | None = None, quick:
     return out
 
 
+def _legend(res: dict) -> str:
+    """Legend text of a study variant (the registry's name of the detector, and its delta)."""
+    from evedge.detector.protocols import METHODS
+
+    name = METHODS.get("intra").display_name
+    if not res["use_intra"]:
+        return f"{name}'s RANSAC without intra-pixel area"
+    return f"{name}, delta {res['delta_px']:g} px" + (" (plain RANSAC)" if res["delta_px"] == 0 else "")
+
+
 def _plot(out_dir: Path, results: dict, params: RansacStudyParams) -> list[Path]:
     plt = pyplot()
     paths = []
@@ -345,9 +355,10 @@ def _plot(out_dir: Path, results: dict, params: RansacStudyParams) -> list[Path]
                 style = "-"
             else:
                 colour, style = "k", "--"
-            axes[0].plot(res["noise_px"], res["f_measure"], style, marker="o", ms=3, color=colour, label=label)
+            text = _legend(res)
+            axes[0].plot(res["noise_px"], res["f_measure"], style, marker="o", ms=3, color=colour, label=text)
             axes[1].plot(res["noise_px"], res["lifetime_rel_error_mean"], style, marker="o", ms=3,
-                         color=colour, label=label)
+                         color=colour, label=text)
         axes[0].set_xlabel("timestamp noise std (units of lifetime)")
         axes[0].set_ylabel("F-measure of inlier decision")
         axes[1].set_xlabel("timestamp noise std (units of lifetime)")

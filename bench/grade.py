@@ -67,6 +67,10 @@ def _plain_h5(path: Path) -> dict:
 
     out = {}
     with h5py.File(path, "r") as f:
+        fmt = f.attrs.get("format")
+        if (fmt.decode() if isinstance(fmt, bytes) else fmt) == "evedge":
+            raise GradeError(f"{path}: is an evedge recording (events, truth), not a detection file; run "
+                             f"'evedge detect {path} -o OUT --at-frames' and grade OUT/detection.h5")
         for name in PLAIN_COLUMNS + ("edge_t_us", "edge_images"):
             if name in f:
                 out[name] = np.asarray(f[name][()])

@@ -183,12 +183,21 @@ def compared(key: str) -> Compared:
         raise ValueError(f"unknown compared method {key!r}; known: {', '.join(COMPARED)}") from None
 
 
+def _registered(key: str):
+    """The registry entry of a method name or ``module:factory`` (None when it resolves to nothing)."""
+    try:
+        return REGISTRY.get(key)
+    except ValueError:  # RegistryError: not registered, not importable (e.g. graded from a file only)
+        return None
+
+
 def label(key: str) -> str:
-    """Legend / table label of a result key (the key itself when it is not a compared method)."""
+    """Legend / table label of a result key or method name (the key itself when nothing is known of it)."""
     c = COMPARED.get(key)
     if c is not None:
         return c.label
-    return REGISTRY.get(key).display_name if key in REGISTRY else key
+    entry = _registered(key)
+    return entry.display_name if entry is not None else key
 
 
 def colour(key: str, default: str = "k") -> str:
@@ -196,7 +205,8 @@ def colour(key: str, default: str = "k") -> str:
     c = COMPARED.get(key)
     if c is not None:
         return c.colour
-    return REGISTRY.get(key).colour if key in REGISTRY else default
+    entry = _registered(key)
+    return entry.colour if entry is not None else default
 
 
 def method_key(base: str, display: str) -> str:

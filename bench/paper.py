@@ -158,7 +158,7 @@ def _ransac(ctx: PaperRun) -> list[dict]:
     ctx.results["truth_tolerance_sensitivity"] = res["truth_tolerance_sensitivity"]
     ctx.results["fmeasure_definitions"] = res["definitions"]
     ctx.figures["ransac"] = res["figures"]
-    return ransac_rows(res["fmeasure"])
+    return ransac_rows(res["fmeasure"], res["truth_tolerance_sensitivity"])
 
 
 def _lifetime(ctx: PaperRun) -> list[dict]:
@@ -362,7 +362,10 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
         if rows:
             table.extend(rows, experiment=name)
     bar.close()
-    results["verdicts"] = all_verdicts(results)
+    results["verdicts"] = all_verdicts(results, table)
+    from .claims import evaluate
+
+    results["claims"] = evaluate(table)
     results["display"] = dict(display_record(DISPLAYS), summary=display_summary(results["verdicts"]))
     wall = time.perf_counter() - t_start
     results["params"] = params

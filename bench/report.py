@@ -289,9 +289,10 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
 
     from .report_render import environment
     from .results import ResultsTable, leaderboard
-    from .verdicts import claim_lines
+    from .claims import evaluate
 
-    board = leaderboard(table if table is not None else ResultsTable())
+    table = table if table is not None else ResultsTable()
+    board = leaderboard(table)
     sections = []
     if results.get("fmeasure"):
         sections.append(("1. RANSAC inlier decision and lifetime error (paper fig. 7)",
@@ -321,7 +322,7 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
                          "display); the tables below list both policies.", figures.get("real", []),
                          Markup(_real_section(results["real"], results.get("real_frames", {})))))
     html_text = environment().get_template("report.html.j2").render(
-        run=results.get("run", {}), board=board, claims=claim_lines(results.get("verdicts", [])),
+        run=results.get("run", {}), board=board, claims=evaluate(table),
         display_headline=Markup(_display_headline(results)),
         verdict_table=Markup(_verdict_section(results.get("verdicts", []))),
         skipped=results.get("skipped") or {}, errors=results.get("errors") or {}, sections=sections, notes=notes,

@@ -243,22 +243,64 @@ def lifetime_rows(lifetime: Mapping) -> list[dict]:
     return rows
 
 
-def ransac_rows(fmeasure: Mapping) -> list[dict]:
-    """``fmeasure[noise kind][variant] = {noise_px: [...], <metric>: [...]}`` -> one row per noise level."""
+def ransac_rows(fmeasure: Mapping, sensitivity: Mapping | None = None) -> list[dict]:
+    """``fmeasure[noise kind][variant] = {noise_px: [...], <metric>: [...]}`` -> one row per noise level.
+
+    Sections ``noise_<level>`` (the timestamp noise std in units of the lifetime); the variant's
+    ``use_intra`` and ``delta_px`` as rows of section ``all``; ``sensitivity[tolerance][kind][variant]``
+    (F-measure under other definitions of a true inlier) as metric ``f_measure@<tolerance>``.
+    """
     rows = []
     for kind, per in fmeasure.items():
         for variant, r in per.items():
-            levels = r.get("noise_px") or []
-            for metric, values in r.items():
-                if metric in ("noise_px",) or not isinstance(values, (list, tuple)) or len(values) != len(levels):
+            levels = list(r.get("noise_px", []))
+            common = {"dataset": f"ransac_{kind}", "reference": "true inliers", "method": "intra", "variant": variant}
+            for metric in ("use_intra", "delta_px"):
+                if metric in r:
+                    rows.append({**common, "section": "all", "metric": metric, "value": _number(r[metric])})
+            series = [(m, v) for m, v in r.items() if m != "noise_px"]
+            series += [(f"f_measure@{tol}", (per_kind.get(kind) or {}).get(variant))
+                       for tol, per_kind in (sensitivity or {}).items()]
+            for metric, values in series:
+                if not isinstance(values, (list, tuple, np.ndarray)) or len(values) != len(levels):
                     continue
                 for level, v in zip(levels, values):
                     num = _number(v)
                     if num is not None:
-                        rows.append({"dataset": f"synthetic windows, {kind} noise", "reference": "true inliers",
-                                     "method": "intra", "variant": variant, "section": f"noise_{level}",
-                                     "metric": metric, "value": num})
+                        rows.append({**common, "section": f"noise_{float(level)!r}", "metric": metric, "value": num})
     return rows
+
+
+def ransac_view(table: ResultsTable, experiment: str = "ransac") -> tuple[dict, dict]:
+    """``(fmeasure, sensitivity)`` in the shapes :func:`evedge.bench.verdicts.intra_verdicts` reads, from the table."""
+    fmeasure: dict = {}
+    sensitivity: dict = {}
+    for r in table.query(experiment=experiment):
+        if not r["dataset"].startswith("ransac_"):
+            continue
+        kind = r["dataset"][len("ransac_"):]
+        res = fmeasure.setdefault(kind, {}).setdefault(r["variant"], {})
+        if r["section"] == "all":
+            res[r["metric"]] = bool(r["value"]) if r["metric"] == "use_intra" else r["value"]
+            continue
+        level = float(r["section"][len("noise_"):])
+        if r["metric"].startswith("f_measure@"):
+            tol = r["metric"].split("@", 1)[1]
+            target = sensitivity.setdefault(tol, {}).setdefault(kind, {}).setdefault(r["variant"], {})
+        else:
+            target = res.setdefault(r["metric"], {})
+        target[level] = None if math.isnan(r["value"]) else r["value"]
+    for kind, per in fmeasure.items():  # level -> value maps to the study's lists
+        for res in per.values():
+            levels = sorted({lv for v in res.values() if isinstance(v, dict) for lv in v})
+            for metric in [m for m, v in res.items() if isinstance(v, dict)]:
+                res[metric] = [res[metric].get(lv) for lv in levels]
+            res["noise_px"] = levels
+    for per_kind in sensitivity.values():
+        for per in per_kind.values():
+            for variant, by_level in per.items():
+                per[variant] = [by_level[lv] for lv in sorted(by_level)]
+    return fmeasure, sensitivity
 
 
 def leaderboard(table: ResultsTable, *, metric: str = "cdm_median", experiments=("similarity", "real"),
@@ -291,3 +333,28 @@ def leaderboard(table: ResultsTable, *, metric: str = "cdm_median", experiments=
         if vals:
             winners[c] = max(vals)[1]
     return {"columns": cols, "rows": rows, "winners": winners}
+
+
+def cdm_view(table: ResultsTable, experiment: str = "similarity") -> dict:
+    """``{dataset: {reference: {variant: {section: {stat: value}}}}}`` of the CDM summary rows (``cdm_<stat>``).
+
+    The shape :func:`evedge.bench.verdicts.cdm_verdicts` reads, rebuilt from the table.
+    """
+    out: dict = {}
+    for r in table.query(experiment=experiment):
+        if not r["metric"].startswith("cdm_") or r["section"].startswith("frame_"):
+            continue
+        stat = r["metric"][4:]
+        value = int(r["value"]) if stat == "n" else r["value"]
+        (out.setdefault(r["dataset"], {}).setdefault(r["reference"], {}).setdefault(r["variant"], {})
+         .setdefault(r["section"], {}))[stat] = value
+    return out
+
+
+def real_view(table: ResultsTable, experiment: str = "real") -> dict:
+    """``{recording: {variant: {"median": {reference: value}}}}`` (what ``real_verdicts`` reads), from the table."""
+    out: dict = {}
+    for r in table.query(experiment=experiment, metric="cdm_median", section="all"):
+        (out.setdefault(r["dataset"], {}).setdefault(r["variant"], {}).setdefault("median", {}))[r["reference"]] = \
+            r["value"]
+    return out

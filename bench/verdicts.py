@@ -50,12 +50,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .methods import DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, PRIMARY_DISPLAY_WHY, display_view
+from .methods import COMPARED, DISPLAY_LABELS, DISPLAYS, PRIMARY_DISPLAY, PRIMARY_DISPLAY_WHY, display_view
 
 BASELINES = ("mueggler", "acc_1ms", "acc_30ms")
 SECTIONS = ("slow", "fast")
 _REF_DELTA = 0.25
 _DIAGNOSTIC = ("mueggler_t0",)  # explanatory variants, never compared in a verdict
+#: The paper's methods (base keys): plug-ins compared with --method are never ranked in a verdict.
+_PAPER_METHODS = frozenset(c.base for c in COMPARED.values() if c.builtin)
 
 
 def _fmt(x, nd=1) -> str:
@@ -386,13 +388,16 @@ def real_verdicts(real: dict, displays=DISPLAYS) -> list[dict]:
                                     display=display))
                 continue
             for ref in per_method["proposed"]["median"]:
-                med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method if m not in _DIAGNOSTIC}
+                med = {m: per_method[m]["median"].get(ref, np.nan) for m in per_method
+                       if m not in _DIAGNOSTIC and m in _PAPER_METHODS}
                 best = max(med, key=lambda m: -np.inf if not np.isfinite(med[m]) else med[m])
                 ev = ", ".join(f"{m} {_fmt(v)}" for m, v in med.items())
                 diag = [f"{m} {_fmt(per_method[m]['median'].get(ref, np.nan))}" for m in per_method
-                        if m in _DIAGNOSTIC]
+                        if m in _DIAGNOSTIC or m not in _PAPER_METHODS]
                 if diag:
-                    ev += "; diagnostic (not ranked): " + ", ".join(diag)
+                    kind = "diagnostic" if all(m in _DIAGNOSTIC for m in per_method if m not in med) \
+                        else "diagnostic or other methods"
+                    ev += f"; {kind} (not ranked): " + ", ".join(diag)
                 ev += f"; best: {best}"
                 if best == "acc_count":
                     rest = {m: v for m, v in med.items() if m != "acc_count"}
@@ -474,40 +479,27 @@ def display_summary(verdicts: list[dict]) -> dict:
     return {"primary": PRIMARY_DISPLAY, "why": PRIMARY_DISPLAY_WHY, "policies": pol, "text": text}
 
 
-def all_verdicts(results: dict) -> list[dict]:
-    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real)."""
-    return (cdm_verdicts(results.get("cdm") or {}, results.get("cdm_diagnostics"))
-            + intra_verdicts(results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity"))
-            + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
-            + real_verdicts(results.get("real") or {}))
+def all_verdicts(results: dict, table=None) -> list[dict]:
+    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real).
 
-
-def claim_lines(verdicts: list[dict]) -> list[dict]:
-    """One line per paper claim: its checks (per scene, truth, display) grouped, with the numbers.
-
-    A claim *holds* when every checked instance holds, *fails* when any fails
-    (``not checked`` when none was checked). Returns dicts ``claim``,
-    ``status``, ``n_holds``, ``n_fails``, ``n_checks``, ``where_fails`` (the
-    bracketed contexts that fail) and ``evidence`` (of the first failing check,
-    else of the first check).
+    With ``table`` (the long :class:`~evedge.bench.results.ResultsTable`), the
+    CDM, real-frame and RANSAC numbers the verdicts decide on are read from the
+    table (:func:`~evedge.bench.results.cdm_view`, ``real_view``, ``ransac_view``);
+    the diagnostics that explain the CDM and the lifetime histograms (peaks are
+    lists, not rows) still come from ``results``.
     """
-    groups: dict[str, list[dict]] = {}
-    for v in verdicts:
-        text = v["claim"]
-        where, claim = "", text
-        if text.startswith("[") and "]" in text:
-            where, claim = text[1:text.index("]")], text[text.index("]") + 1:].strip()
-        groups.setdefault(claim, []).append(dict(v, where=where))
-    out = []
-    for claim, vs in groups.items():
-        fails = [v for v in vs if v["status"] == "fails"]
-        holds = [v for v in vs if v["status"] == "holds"]
-        status = "fails" if fails else ("holds" if holds else "not checked")
-        first = (fails or holds or vs)[0]
-        out.append({"claim": claim, "status": status, "n_holds": len(holds), "n_fails": len(fails),
-                    "n_checks": len(holds) + len(fails), "where_fails": [v["where"] for v in fails],
-                    "where_first": first["where"], "evidence": first["evidence"]})
-    return out
+    cdm, real = results.get("cdm") or {}, results.get("real") or {}
+    fmeasure, sensitivity = results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity")
+    if table is not None:
+        from .results import cdm_view, ransac_view, real_view
+
+        cdm, real = cdm_view(table), real_view(table)
+        if table.query(experiment="ransac"):
+            fmeasure, sensitivity = ransac_view(table)
+    return (cdm_verdicts(cdm, results.get("cdm_diagnostics"))
+            + intra_verdicts(fmeasure, sensitivity)
+            + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
+            + real_verdicts(real))
 
 
 def policy_effect(results: dict) -> dict | None:

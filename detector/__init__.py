@@ -12,7 +12,10 @@ Public API (loaded on first use, so ``import evedge.detector`` stays cheap):
 - :mod:`~evedge.detector.intra`: ``IntraParams``, ``IntraPixelLifetime``,
   ``estimate_lifetimes``, ``fit_window``, ``fit_windows``, ``WindowFit``
 - :mod:`~evedge.detector.edges`: ``EdgeImage``, ``edge_frames``
-- :mod:`~evedge.detector.pipeline`: ``detect``, ``Detector``, ``DetectionResult``
+- :mod:`~evedge.detector.pipeline`: ``detect``, ``Detector``, ``DetectionResult``, ``make_method``,
+  ``keep_mask``, ``edge_frames_of``
+- :mod:`~evedge.detector.protocols`: ``METHODS`` (the method registry), ``LifetimeEstimator``,
+  ``NoiseFilter``, ``EdgeDetector``
 - :mod:`~evedge.detector.result`: ``LIFETIME_DTYPE``, ``empty_lifetimes``
 - baselines: ``MuegglerParams``, ``MuegglerLifetime``, ``estimate_lifetimes_mueggler``
   (:mod:`~evedge.detector.mueggler`); ``accumulate_time``, ``accumulate_count``,
@@ -40,6 +43,13 @@ _EXPORTS = {
     "detect": "pipeline",
     "Detector": "pipeline",
     "DetectionResult": "pipeline",
+    "make_method": "pipeline",
+    "keep_mask": "pipeline",
+    "edge_frames_of": "pipeline",
+    "METHODS": "protocols",
+    "LifetimeEstimator": "protocols",
+    "NoiseFilter": "protocols",
+    "EdgeDetector": "protocols",
     "LIFETIME_DTYPE": "result",
     "empty_lifetimes": "result",
     "MuegglerParams": "mueggler",

@@ -161,9 +161,13 @@ def edge_frames_of(method: str, events: np.ndarray, sensor_size, times_us, param
     sensor_size = check_sensor_size(sensor_size)
     entry = METHODS.get(method, kind="edges")
     kw = method_params(method, params)
+    events = check_events(events, sensor_size)
     times = np.asarray(times_us, dtype=np.int64)
-    if "frames" in entry.metadata:
-        return np.asarray(entry.metadata["frames"](events, sensor_size, times, **kw)) > 0
+    if "frames" in entry.metadata:  # one-shot frames take non-decreasing instants: sort, then put back
+        order = np.argsort(times, kind="stable")
+        out = np.zeros((times.size, sensor_size.height, sensor_size.width), dtype=bool)
+        out[order] = np.asarray(entry.metadata["frames"](events, sensor_size, times[order], **kw)) > 0
+        return out
     det = entry.factory(sensor_size, **kw)
     out = np.zeros((times.size, sensor_size.height, sensor_size.width), dtype=bool)
     order = np.argsort(times, kind="stable")

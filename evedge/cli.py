@@ -19,6 +19,7 @@ _SUBCOMMANDS = {
     "convert": "evedge.io.cli:convert",
     "render": "evedge.video_cli:render",
     "simulate": "evedge.sim.cli:simulate",
+    "dataset": "evedge.sim.dataset_cli:dataset",
     "detect": "evedge.detector.cli:detect",
     "bench": "evedge.bench.cli:bench",
     "demo": "evedge.bench.cli:demo",

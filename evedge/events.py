@@ -306,6 +306,11 @@ class Recording:
     calibration : evedge.calibration.CameraCalibration or None
         Intrinsics and distortion of the camera (an ECD folder's ``calib.txt``);
         see :func:`evedge.calibration.undistort_events`.
+    maps : dict of str to Frames
+        Per-frame ground-truth images by name, from the simulator's 3-D scenes: ``depth_m``
+        (z-depth, inf where nothing is seen), ``flow_x_px_s`` and ``flow_y_px_s`` (motion field).
+    imu : numpy.ndarray or None
+        IMU truth rows (structured: ``t_us`` and readings, see ``evedge.sim.trajectory.IMU_DTYPE``).
     """
 
     events: np.ndarray
@@ -315,6 +320,8 @@ class Recording:
     edges: Frames | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
     calibration: Any = None
+    maps: dict[str, Frames] = field(default_factory=dict)
+    imu: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.events = validate_events(self.events, self.sensor_size, name="Recording: events")
@@ -327,7 +334,12 @@ class Recording:
             raise ValueError(
                 f"Recording: truth has {self.truth.shape[0]} rows but there are {self.events.shape[0]} events"
             )
-        for label, stack in (("frames", self.frames), ("edges", self.edges)):
+        if not isinstance(self.maps, dict) or not all(isinstance(m, Frames) for m in self.maps.values()):
+            raise TypeError("Recording: maps must be a dict of name to Frames")
+        if self.imu is not None and (self.imu.dtype.names is None or "t_us" not in self.imu.dtype.names):
+            raise TypeError("Recording: imu must be a structured array with a t_us field")
+        stacks = [("frames", self.frames), ("edges", self.edges)] + [(f"maps[{k!r}]", m) for k, m in self.maps.items()]
+        for label, stack in stacks:
             if stack is not None and stack.images.shape[1:] != self.sensor_size.shape:
                 raise ValueError(
                     f"Recording: {label} are {stack.images.shape[2]}x{stack.images.shape[1]} but the "

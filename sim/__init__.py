@@ -1,7 +1,8 @@
 """evedge.sim: event-camera simulator with exact ground truth.
 
 Scenes (TOML, schema in ``sim/SCENES.md``) are rendered analytically (planar
-scenes: exact per-pixel area coverage) or with pyrender (3-D box scenes),
+scenes and 3-D box scenes: exact per-pixel area coverage) or with pyrender
+(3-D textured meshes),
 sampled adaptively and converted to events ESIM-style, with per-event ground
 truth (flow, gradient direction, lifetime) in :data:`TRUTH_DTYPE`.
 

@@ -60,3 +60,17 @@ def _accumulate_pieces(acc, width, height, u0s, v0s, u1s, v1s, jumps):
             for col in range(first, last + 1):
                 cover = _row_coverage_1(col + 0.5, xa, xb, h) - _row_coverage_1(col - 0.5, xa, xb, h)
                 acc[row, col] += jump * cover
+
+
+@njit(cache=True)
+def _prefix_rows(acc, left, width, out):
+    """``out[i, j] = clip(left[i] + sum(acc[i, :j + 1]), 0, 1)``: the image from the accumulated jumps.
+
+    Sums along each row in order (the same additions as ``numpy.cumsum``), then clips to [0, 1].
+    """
+    for i in range(out.shape[0]):
+        s = 0.0
+        for j in range(width):
+            s += acc[i, j]
+            v = left[i] + s
+            out[i, j] = min(max(v, 0.0), 1.0)

@@ -283,6 +283,7 @@ class EventConverter:
         self.width = int(renderer.width)
         self.height = int(renderer.height)
         self._geometric = isinstance(renderer, GeometricTruth)
+        self._flow_at = callable(getattr(renderer, "flow_at", None))
         mode = params.sampling
         # renderers with fixed sample times (frames input): sample exactly there, nothing to verify
         self._fixed = callable(getattr(renderer, "next_sample_s", None))
@@ -720,14 +721,18 @@ class EventConverter:
         if self._geometric:
             vx, vy, nx, ny = self.renderer.point_truth(x.astype(np.float64), y.astype(np.float64), t_true)
         else:
-            # sampled truth: flow and log-gradient interpolated between the two samples
+            # sampled truth: flow and log-gradient interpolated between the two samples; a renderer
+            # with flow_at (the 3-D ones) gives the exact flow at each event's pixel and time instead
             eps = self.params.log_eps
-            f0 = self._flow if self._flow is not None else np.asarray(self.renderer.flow(t0), dtype=np.float64)
-            f1 = np.asarray(self.renderer.flow(t1), dtype=np.float64)
-            self._flow = f1
             w = ((t_true - t0) / (t1 - t0)) if t1 > t0 else np.zeros_like(t_true)
-            vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
-            vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
+            if self._flow_at:
+                vx, vy = self.renderer.flow_at(x, y, t_true)
+            else:
+                f0 = self._flow if self._flow is not None else np.asarray(self.renderer.flow(t0), dtype=np.float64)
+                f1 = np.asarray(self.renderer.flow(t1), dtype=np.float64)
+                self._flow = f1
+                vx = (1 - w) * f0[0, y, x] + w * f1[0, y, x]
+                vy = (1 - w) * f0[1, y, x] + w * f1[1, y, x]
             # the log only where the central differences need it (not the full frames)
             g0x, g0y = log_gradient_direction_at(i0, eps, x, y, self.width, self.height)
             g1x, g1y = log_gradient_direction_at(i1, eps, x, y, self.width, self.height)

@@ -175,6 +175,8 @@ class Scene:
     sections: tuple[Section, ...] = ()
     description: str = ""
     raw: dict = field(default_factory=dict, compare=False, repr=False)
+    #: mesh scenes: ``{"meshes", "render", "imu"}`` (see :mod:`evedge.sim.scene3d`); empty otherwise
+    setup_3d: dict = field(default_factory=dict, compare=False, repr=False)
 
     def build_renderer(self):
         """A renderer for this scene (imports the 3-D renderer only for ``mesh`` scenes)."""
@@ -340,35 +342,6 @@ def _motion(t: _Table, sensor: Sensor):
     return m
 
 
-def _mesh(top: _Table):
-    cam = top.table("camera", required=True)
-    camera = dict(
-        position_m=cam.vector("position_m", 3, (0.0, 0.0, 0.0)),
-        velocity_m_s=cam.vector("velocity_m_s", 3, (0.0, 0.0, 0.0)),
-        rotation_rpy_rad=tuple(math.radians(a) for a in cam.vector("rotation_rpy_deg", 3, (0.0, 0.0, 0.0))),
-        angular_velocity_rad_s=tuple(math.radians(a) for a in cam.vector("angular_velocity_deg_s", 3, (0.0, 0.0, 0.0))),
-    )
-    cam.finish()
-    boxes = []
-    tables = top.array_of_tables("boxes")
-    if not tables:
-        top.fail("boxes", "at least one [[boxes]] table is required for kind 'mesh'")
-    for t in tables:
-        size = t.vector("size_m", 3)
-        if min(size) <= 0:
-            t.fail("size_m", f"all sizes must be > 0, got {list(size)}")
-        faces = t.raw("face_intensities")
-        if isinstance(faces, (int, float)) and not isinstance(faces, bool):
-            faces = [faces] * 6
-        if (not isinstance(faces, list) or len(faces) != 6
-                or not all(isinstance(a, (int, float)) and not isinstance(a, bool) and 0 <= a <= 1 for a in faces)):
-            t.fail("face_intensities", f"expected 6 numbers in [0, 1] (or one), got {faces!r}")
-        boxes.append(dict(center_m=t.vector("center_m", 3), size_m=size,
-                          face_intensities=tuple(float(a) for a in faces)))
-        t.finish()
-    return tuple(boxes), camera
-
-
 def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     """Validate a scene dict (the parsed TOML) and return a :class:`Scene`.
 
@@ -410,17 +383,20 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
         t.finish()
         sections.append(s)
     motion = None
+    setup_3d = {}
     if kind == "stripes":
         objects = _stripes(top, sensor)
     elif kind == "shapes":
         objects = _shapes(top)
         motion = _motion(top.table("motion"), sensor)
     else:
-        objects, motion = _mesh(top)
+        from .scene3d import parse_mesh  # camera trajectory, boxes, meshes, IMU (3-D schema)
+
+        objects, motion, setup_3d = parse_mesh(top, duration)
     top.finish()
     return Scene(name=name, kind=kind, source=source, duration_s=duration, seed=seed, frame_rate_hz=frame_rate,
                  sensor=sensor, params=params, background=background, objects=objects, motion=motion,
-                 sections=tuple(sections), description=description, raw=data)
+                 sections=tuple(sections), description=description, raw=data, setup_3d=setup_3d)
 
 
 def with_sensor(scene: Scene, preset: str) -> Scene:

@@ -158,6 +158,10 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
                 f"(frame_rate_hz={frame_rate_hz}, duration_s={scene.duration_s}) need {gib:.1f} GiB; "
                 f"lower frame_rate_hz or duration_s"
             ) from None
+        # 3-D scenes: per-frame depth and motion field (the renderer knows its geometry)
+        maps = {}
+        if scene.kind == "mesh" and frame_t.shape[0]:
+            maps = {name: np.empty(images.shape, dtype=np.float32) for name in ("depth_m", "flow_x_px_s", "flow_y_px_s")}
         ev_parts, tr_parts = [], []
         next_frame = 0
         t_done = 0.0
@@ -173,6 +177,10 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
                 while next_frame < frame_t.shape[0] and (frame_t[next_frame] <= conv.t or conv.done):
                     images[next_frame] = renderer.intensity(float(frame_t[next_frame]))
                     edges[next_frame] = renderer.edges(float(frame_t[next_frame]))
+                    if maps:
+                        maps["depth_m"][next_frame] = renderer.depth(float(frame_t[next_frame]))
+                        maps["flow_x_px_s"][next_frame], maps["flow_y_px_s"][next_frame] = \
+                            renderer.flow(float(frame_t[next_frame]))
                     next_frame += 1
                 now_ms = min(int(round(conv.t * 1000)), bar.total)
                 bar.update(now_ms - done_ms)
@@ -180,6 +188,14 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
                 t_done = conv.t
     finally:
         renderer.close()
+    imu_rows = None
+    imu_cfg = scene.setup_3d.get("imu") if scene.kind == "mesh" else None
+    if imu_cfg and imu_cfg["rate_hz"] > 0:
+        from .build import build_trajectory
+        from .trajectory import imu_table
+
+        imu_rows = imu_table(build_trajectory(scene.motion), imu_cfg["rate_hz"], scene.duration_s,
+                             imu_cfg["gravity_m_s2"])
     events = np.concatenate(ev_parts)
     truth = np.concatenate(tr_parts) if tr_parts else np.empty(0, dtype=TRUTH_DTYPE)
     frame_us = np.rint(frame_t * 1e6).astype(np.int64)
@@ -213,6 +229,8 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         truth=truth,
         edges=Frames(frame_us, edges) if frame_t.size else None,
         metadata=metadata,
+        maps={name: Frames(frame_us, stack) for name, stack in maps.items()},
+        imu=imu_rows,
     )
 
 

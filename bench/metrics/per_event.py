@@ -20,12 +20,28 @@ def _signal_truth(inp: GradeInput, field: str) -> np.ndarray | None:
     return value
 
 
+#: Bands of true normal speed (px/s, ``1e6 / lifetime``) the lifetime error is also given in.
+SPEED_BANDS_PX_S = (0.0, 50.0, 100.0, 200.0, 400.0, 800.0, float("inf"))
+
+
+def _speed_bands(truth_lifetime_us: np.ndarray) -> dict[str, np.ndarray]:
+    speed = 1e6 / truth_lifetime_us
+    out = {}
+    for lo, hi in zip(SPEED_BANDS_PX_S[:-1], SPEED_BANDS_PX_S[1:]):
+        sel = (speed >= lo) & (speed < hi)
+        if sel.any():
+            out[f"speed {lo:g}-{hi:g} px/s"] = sel
+    return out
+
+
 def lifetime_error(inp: GradeInput) -> list[dict]:
-    """Relative lifetime error on the signal events with a finite true lifetime, per section.
+    """Relative lifetime error on the signal events with a finite true lifetime, per section and speed band.
 
     ``median_rel_error`` and ``p90_rel_error`` of ``|est / truth - 1|`` over the
     events with an estimate; ``share_estimated``: events with an estimate over
-    all such events; ``n_events``: how many such events.
+    all such events; ``n_events``: how many such events. Sections: the scene's
+    time sections (``slow``, ``fast``, ``all``) and bands of the true normal
+    speed ``1e6 / lifetime`` (:data:`SPEED_BANDS_PX_S`, e.g. ``speed 50-100 px/s``).
 
     Examples
     --------
@@ -38,7 +54,10 @@ def lifetime_error(inp: GradeInput) -> list[dict]:
     est = np.asarray(inp.lifetime_us, dtype=np.float64)
     usable = np.isfinite(truth) & (truth > 0)
     rows = []
-    for name, sel in section_masks(inp.events["t"], inp.sections).items():
+    groups = dict(section_masks(inp.events["t"], inp.sections))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        groups.update(_speed_bands(np.where(usable, truth, np.nan)))
+    for name, sel in groups.items():
         base = sel & usable
         n = int(base.sum())
         ok = base & np.isfinite(est) & (est > 0)

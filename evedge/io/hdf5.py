@@ -108,6 +108,14 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
                 _write_stack(f, "frames", recording.frames)
             if recording.edges is not None:
                 _write_stack(f, "edges", recording.edges)
+            if recording.maps:
+                group = f.create_group("maps", track_order=True)
+                for name, stack in recording.maps.items():
+                    _write_stack(group, name, stack)
+            if recording.imu is not None:
+                group = f.create_group("imu", track_order=True)
+                for name in recording.imu.dtype.names:
+                    _dataset(group, name, np.ascontiguousarray(recording.imu[name]), (max(1, min(recording.imu.size, 4096)),))
     return path
 
 
@@ -272,6 +280,19 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
                 truth[name] = col
         frames = _stack(f, path, "frames", sensor)
         edges = _stack(f, path, "edges", sensor)
+        maps = {}
+        if "maps" in f:
+            group = _group(f, path, "maps")
+            maps = {name: _stack(group, path, name, sensor) for name in group}
+        imu = None
+        if "imu" in f:
+            group = _group(f, path, "imu")
+            cols = [(name, _dataset_in(group, path, name)[()]) for name in group]
+            if not cols or any(c.ndim != 1 or c.shape != cols[0][1].shape for _, c in cols) or "t_us" not in dict(cols):
+                raise EventFileError(f"{path}: group 'imu' needs 1-D datasets of one length, t_us among them")
+            imu = np.empty(cols[0][1].shape[0], dtype=[(n, c.dtype) for n, c in cols])
+            for name, col in cols:
+                imu[name] = col
         calibration = None
         if "calibration" in f.attrs:
             try:
@@ -288,7 +309,7 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
     if was_sorted:
         metadata["sorted_on_load"] = True
     return Recording(events, sensor, frames=frames, truth=truth, edges=edges, metadata=metadata,
-                     calibration=calibration)
+                     calibration=calibration, maps=maps, imu=imu)
 
 
 def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> Iterator[np.ndarray]:

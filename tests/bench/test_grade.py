@@ -104,6 +104,8 @@ def test_mismatching_detections_are_refused(graded, tmp_path):
     np.savez(tmp_path / "big.npz", edge_t_us=np.array([0]), edge_images=np.zeros((1, 3, 3), bool))
     with pytest.raises(GradeError, match="edge frames are 3x3"):
         grade(data, tmp_path / "big.npz", tmp_path / "o5")
+    with pytest.raises(GradeError, match="is an evedge recording"):
+        load_detections(data)
     (tmp_path / "bad.csv").write_text("lifetime_us,colour\n1,red\n")
     with pytest.raises(GradeError, match="header must name columns"):
         load_detections(tmp_path / "bad.csv")

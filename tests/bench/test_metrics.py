@@ -39,6 +39,10 @@ def test_lifetime_error_known_answer():
     assert got[("truth", "early", "median_rel_error")] == pytest.approx(0.1)
     assert got[("truth", "early", "share_estimated")] == 1.0
     assert _rows("lifetime_error", _inp(6, lifetime_us=est)) == {}  # no truth: no rows
+    # speed bands: truth 10 ms = 100 px/s, in the band 100-200 px/s with all four usable events
+    assert got[("truth", "speed 100-200 px/s", "n_events")] == 4
+    assert got[("truth", "speed 100-200 px/s", "median_rel_error")] == pytest.approx(0.1)
+    assert not any(k[1].startswith("speed 50-100") for k in got)  # empty bands give no rows
 
 
 def test_normal_flow_error_known_answer():

@@ -2,6 +2,7 @@
 
 import json
 import re
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -10,6 +11,8 @@ from evedge.bench.cli import bench
 from evedge.bench.exp_ransac import RansacStudyParams
 from evedge.bench.paper import run_paper
 from evedge.bench.report import write_report
+
+TINY_SCENE = Path(__file__).resolve().parents[1] / "data" / "tiny_shapes.toml"
 
 
 @pytest.fixture(scope="module")
@@ -224,3 +227,69 @@ def test_report_states_the_policy_effect_from_the_numbers():
     from evedge.bench.paper import NOTES
 
     assert not any("more than the estimator" in n for n in NOTES)
+
+
+def _legacy_counts(verdicts, text):
+    """(holds, fails) of the detailed verdicts whose claim (after its [context]) starts like ``text``."""
+    vs = [v for v in verdicts if v["claim"].split("] ", 1)[-1].startswith(text[:40])]
+    return sum(v["status"] == "holds" for v in vs), sum(v["status"] == "fails" for v in vs)
+
+
+def test_results_table_and_declarative_claims_agree_with_the_verdicts(tiny_run):
+    """The long table holds the experiments' numbers, and the claims computed from it (declarative
+    rules) agree with the detailed verdicts computed from results.json, group for group."""
+    from markupsafe import escape
+
+    from evedge.bench.claims import CLAIMS, evaluate
+    from evedge.bench.results import read_results
+
+    out, res = tiny_run
+    table = read_results(out / "results.h5")
+    assert read_results(out / "results.csv").rows == table.rows
+    assert set(table.unique("experiment")) == {"ransac", "lifetime", "similarity", "real"}
+    scene = next(iter(res["cdm"]))
+    # a number of the nested results is the same number in the table
+    want = res["cdm"][scene]["exact"]["proposed_noclear"]["fast"]["median"]
+    assert table.value(experiment="similarity", reference="exact", variant="proposed_noclear", section="fast",
+                       metric="cdm_median") == want
+    assert table.unique("method", experiment="similarity", variant="proposed_noclear") == ["intra"]
+    assert table.unique("display", experiment="similarity", variant="proposed_noclear") == ["lifetime_only"]
+    claims = {c["name"]: c for c in evaluate(table)}
+    assert claims == {c["name"]: c for c in res["claims"]}
+    checked = 0
+    for claim in CLAIMS:
+        c = claims[claim.name]
+        assert (c["n_holds"], c["n_fails"]) == _legacy_counts(res["verdicts"], claim.text), claim.name
+        checked += c["n_checks"]
+    assert checked >= 10
+    html = (out / "report.html").read_text()
+    board = html[html.index("<h2>Leaderboard"):html.index("<h2>Do the paper")]
+    assert "<b>" in board and "proposed (intra-pixel-area)" in board and "vs exact" in board
+    for c in claims.values():
+        assert str(escape(c["claim"])) in html
+
+
+def test_cli_prints_one_line_per_claim(tmp_path):
+    res = CliRunner().invoke(bench, ["paper", "-o", str(tmp_path / "o"), "--quick", "--only", "similarity",
+                                     "--scene", str(TINY_SCENE), "--no-progress"])
+    assert res.exit_code == 0, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("  [")]
+    from evedge.bench.claims import CLAIMS
+
+    assert len(lines) == len(CLAIMS)
+    assert any("checks hold)" in ln for ln in lines)
+
+
+def test_verdicts_from_the_table_equal_those_from_the_nested_results(tiny_run):
+    from evedge.bench.results import cdm_view, read_results, real_view
+    from evedge.bench.verdicts import all_verdicts
+
+    out, res = tiny_run
+    table = read_results(out / "results.csv")
+    data = json.loads((out / "results.json").read_text())
+    nested = {k: res[k] for k in ("cdm", "real", "fmeasure", "truth_tolerance_sensitivity", "lifetime",
+                                  "lifetime_datasets", "cdm_diagnostics")}
+    assert all_verdicts(nested) == all_verdicts(nested, table) == res["verdicts"]
+    assert cdm_view(table).keys() == res["cdm"].keys()
+    assert {k: {m: v["median"] for m, v in per.items()} for k, per in real_view(table).items()} == \
+        {k: {m: v["median"] for m, v in per.items()} for k, per in data["real"].items()}

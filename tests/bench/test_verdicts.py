@@ -241,3 +241,13 @@ def test_missing_baselines_are_not_beaten_vacuously():
     assert cdm_verdicts(lost, displays=PRIMARY_ONLY)[0]["status"] == "fails"
     alone = {"r": {"proposed": {"median": {"c": 50.0}}}}
     assert real_verdicts(alone, displays=PRIMARY_ONLY)[0]["status"] == "not checked"
+
+
+def test_a_plugin_is_never_ranked_in_the_real_frames_claim():
+    from evedge.bench.verdicts import real_verdicts
+
+    per = {"proposed": {"median": {"c": 50.0}}, "mueggler": {"median": {"c": 10.0}},
+           "acc_1ms": {"median": {"c": 20.0}}, "some.plugin:Method": {"median": {"c": 90.0}}}
+    (v,) = real_verdicts({"rec": per}, displays=("predecessor",))
+    assert v["status"] == "holds"
+    assert "some.plugin:Method 90.0" in v["evidence"] and "other methods (not ranked)" in v["evidence"]

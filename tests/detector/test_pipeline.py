@@ -133,3 +133,30 @@ def test_keep_mask_of_a_streaming_only_filter(edge_events, random_events):
     np.testing.assert_array_equal(keep_mask(name, ev, size, {"tau_min_us": 4000}), want)
     res = detect(ev, size, filter=name, buffer_params={"tau_min_us": 4000})
     np.testing.assert_array_equal(res.kept, want)
+
+
+def test_edge_frames_of_a_streaming_edge_detector(edge_events):
+    """An edge detector without one-shot frames is streamed and asked image_at: same as the one-shot form."""
+    from evedge.detector.accumulate import TimeWindowAccumulator, accumulate_time
+    from evedge.detector.pipeline import edge_frames_of
+    from evedge.detector.protocols import METHODS, EdgeDetector
+
+    class Streamed(TimeWindowAccumulator):
+        kind = "edges"
+
+        def __init__(self, sensor_size, window_us=2000):
+            super().__init__(sensor_size, window_us)
+
+    name = "tests.streamed_time_window"
+    if name not in METHODS:
+        METHODS.register(name, Streamed, kind="edges", source="test")
+    size = SensorSize(16, 12)
+    ev, _ = edge_events(16, 12, 800, 0.3, n_edges=2, spacing_px=6)
+    times = [int(ev["t"][-1]), 3000, int(ev["t"][ev.size // 2])]  # any order
+    assert isinstance(Streamed(size), EdgeDetector)
+    got = edge_frames_of(name, ev, size, times, {"window_us": 2000})
+    order = np.argsort(times)
+    want = np.zeros_like(got)
+    want[order] = accumulate_time(ev, size, np.asarray(times)[order], 2000) > 0
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(edge_frames_of("time", ev, size, times, {"window_us": 2000}), got)

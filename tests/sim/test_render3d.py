@@ -21,7 +21,8 @@ STILL = CameraTrajectory((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0
 def gl():
     """Skip rendering tests, with the reason, when offscreen EGL rendering is unavailable."""
     try:
-        MeshRenderer(8, 6, 5.0, 5.0, 4.0, 3.0, [], STILL).close()
+        with MeshRenderer(8, 6, 5.0, 5.0, 4.0, 3.0, [], STILL) as r:
+            r.intensity(0.0, method="raster")  # GL is created by the first raster render
     except Exception as exc:
         # only a failure inside the GL stack means "cannot test rendering here"; a bug in
         # MeshRenderer itself must fail the tests, not skip them all

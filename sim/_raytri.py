@@ -1,0 +1,48 @@
+"""numba kernel: depth of the first triangle hit by each ray (per-event truth of the raster mesh renderer)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _first_hit_depth_kernel(x, y, rot, centre, v0, e1, e2, znear, out_z):
+    """z-depth of the first triangle hit by the camera ray ``(x[i], y[i], 1)`` (inf: none).
+
+    ``rot`` (M, 3, 3) and ``centre`` (M, 3) are one pose (M = 1) or one per point; triangles
+    are ``v0 + a e1 + b e2`` (T, 3) in the world frame. Moller-Trumbore intersection; the ray
+    parameter along ``R (x, y, 1)`` is the z-depth itself; hits nearer than ``znear`` are
+    ignored, as the OpenGL near plane clips them. Brute force over the triangles.
+    """
+    for i in range(x.shape[0]):
+        m = i if rot.shape[0] > 1 else 0
+        d0 = rot[m, 0, 0] * x[i] + rot[m, 0, 1] * y[i] + rot[m, 0, 2]
+        d1 = rot[m, 1, 0] * x[i] + rot[m, 1, 1] * y[i] + rot[m, 1, 2]
+        d2 = rot[m, 2, 0] * x[i] + rot[m, 2, 1] * y[i] + rot[m, 2, 2]
+        o0, o1, o2 = centre[m, 0], centre[m, 1], centre[m, 2]
+        best = np.inf
+        for k in range(v0.shape[0]):
+            a0, a1, a2 = e1[k, 0], e1[k, 1], e1[k, 2]
+            b0, b1, b2 = e2[k, 0], e2[k, 1], e2[k, 2]
+            p0 = d1 * b2 - d2 * b1
+            p1 = d2 * b0 - d0 * b2
+            p2 = d0 * b1 - d1 * b0
+            det = a0 * p0 + a1 * p1 + a2 * p2
+            if abs(det) < 1e-300:
+                continue
+            inv = 1.0 / det
+            s0, s1, s2 = o0 - v0[k, 0], o1 - v0[k, 1], o2 - v0[k, 2]
+            u = (s0 * p0 + s1 * p1 + s2 * p2) * inv
+            if u < 0.0 or u > 1.0:
+                continue
+            q0 = s1 * a2 - s2 * a1
+            q1 = s2 * a0 - s0 * a2
+            q2 = s0 * a1 - s1 * a0
+            v = (d0 * q0 + d1 * q1 + d2 * q2) * inv
+            if v < 0.0 or u + v > 1.0:
+                continue
+            t = (b0 * q0 + b1 * q1 + b2 * q2) * inv
+            if znear <= t < best:
+                best = t
+        out_z[i] = best
