@@ -25,7 +25,7 @@ def build_renderer(scene):
         return ShapesRenderer(s.width, s.height, list(scene.objects), scene.motion, background=scene.background)
     if scene.kind == "mesh":
         trajectory = build_trajectory(scene.motion)
-        setup = scene.setup_3d or {"meshes": (), "render": {"method": "exact", "supersample": 3}}
+        setup = scene.setup_3d or {"meshes": (), "render": {"method": "exact", "supersample": 2}}
         if setup["render"]["method"] == "exact":
             from .render3d import Box3D, MeshRenderer
 

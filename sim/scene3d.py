@@ -123,9 +123,7 @@ def parse_mesh(top, duration_s: float):
     method = render.string("method", "auto", choices=("auto", "exact", "raster"))
     if method == "exact" and meshes:
         render.fail("method", "'exact' renders boxes only; scenes with [[meshes]] need 'raster' (or 'auto')")
-    supersample = render.number("supersample", 3, lo=1, hi=15, integer=True)
-    if supersample % 2 == 0:
-        render.fail("supersample", f"must be odd (a sample at each pixel centre), got {supersample}")
+    supersample = render.number("supersample", 2, lo=1, hi=15, integer=True)
     render.finish()
     imu = top.table("imu")
     imu_cfg = dict(rate_hz=imu.number("rate_hz", 1000.0, lo=0, hi=1e6),
