@@ -16,16 +16,20 @@ Beside them, in the same run:
 * the bound: ``_bound_kernel.bound_stream``, a tight hand-written numba kernel
   doing the estimator's per-event work (same steps, draws and trial counts, no
   byte-exactness constraint); printed as project / bound (CPU);
-* the strips (``n_tiles``): buffer + estimator on 1 and on ``--tiles`` strips (8:
-  narrow strips shared by numba's threads keep both busy when edges sweep the
-  rows), alternated ``--repeat`` times, wall and CPU; speedup = wall(1) / wall(N);
+* the strips (``n_tiles``): buffer + estimator on 1 and on ``--tiles`` strips
+  (default 2; the strips are shared by numba's threads), alternated ``--repeat``
+  times, wall and CPU; speedup = wall(1) / wall(N). Measured 2026-12-01 at a load
+  average of ~5.5: 0.71x (stripes.mat) / 0.89x (shapes) with 2 strips, 0.40 /
+  0.44x with 8: CPU time stays close to wall time, so the two workers mostly
+  alternate: a strip waiting for a neighbour's decision longer than its spin
+  gives the core away and, on this shared machine, loses it to other jobs;
 * the projection to a Prophesee Gen4 sensor (1280x720, 20 M events/s): cores
   needed = 20e6 x the measured CPU time per event of the full pipeline (buffer +
   estimator + edge image) / the measured parallel efficiency;
 * the machine's load (1-minute load average before and after, CPU count): the
   machine is shared, wall-clock figures depend on it.
 
-Run: ``.venv/bin/python benchmarks/bench_detector.py [--repeat 3] [--tiles 8] [--synthetic]``.
+Run: ``.venv/bin/python benchmarks/bench_detector.py [--repeat 3] [--tiles 2] [--synthetic]``.
 
 What limits the speed (2026-12-01, CPU time, best of 3, load average ~8 on the
 2 CPUs): the intra-pixel estimator, ~0.52 us per kept event on stripes.mat and
@@ -216,7 +220,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--synthetic", action="store_true", help="also the synthetic moving edges")
-    ap.add_argument("--tiles", type=int, default=8,
+    ap.add_argument("--tiles", type=int, default=2,
                     help="strips for the parallel measurement, shared by numba's threads (1 = skip)")
     args = ap.parse_args(argv)
     stripes = load_stripes()

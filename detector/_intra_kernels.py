@@ -73,6 +73,9 @@ _LOG_TABLE_MAX = 121
 #: Candidate planes computed together (their chains of dependent operations overlap).
 _BATCH = 4
 
+#: Reads of an unpublished halo decision before a strip gives up (returns, or yields the core).
+_SPINS = 20_000
+
 #: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
 _EXACT_SUM = 2**53
 
@@ -515,13 +518,16 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     ``sae`` is the flat SAE (``(plane * rows + y - row0) * width + x``), updated in
     place; rows outside it are treated as outside the sensor. Event ``k = idx[j]``
     has global index ``g0 + k`` (it seeds its random stream) and writes
-    ``out_*[k]`` (flow in px/s) when it lies in the owned rows ``own_lo <= y <
-    own_hi``. Returns the index ``j`` where it stopped (``idx.size`` at the end).
+    ``out_*[j]`` (flow in px/s; aligned with ``idx``, so a strip's outputs are its
+    own memory, not interleaved with its neighbours') when it lies in the owned
+    rows ``own_lo <= y < own_hi``. Returns the index ``j`` where it stopped
+    (``idx.size`` at the end).
 
     Halo (events outside the owned rows, only with strips): ``dec`` (int8, per
     event ``k``; empty without strips) carries each event's burst decision from the
-    strip that owns it: an owned event publishes ``1`` (new burst) or ``2``
-    (continues its pixel's burst); a halo event replays that decision (SAE update
+    strip that owns it: an owned event within ``half`` rows of its strip's edges
+    publishes ``1`` (new burst) or ``2`` (continues its pixel's burst); a halo
+    event replays that decision (SAE update
     only, no fit). A halo event whose decision is not published yet (``0``) is
     waited for (``wait``), or ends the call (it returns that event's ``j``).
 
@@ -560,10 +566,14 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         if not (own_lo <= y[k] < own_hi):
             # a halo event: its owner's burst decision, the SAE as it left it, no fit
             dk = _load_acquire(dec, k)
+            spins = 0
             while dk == 0:
-                if not wait:
-                    return j
-                _sched_yield()
+                # the owner is usually microseconds behind: spin a while before giving up
+                spins += 1
+                if spins > _SPINS:
+                    if not wait:
+                        return j
+                    _sched_yield()
                 dk = _load_acquire(dec, k)
             if dk == 1:
                 sae[si] = tk
@@ -598,29 +608,30 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 break
         # border rule: the fit still feeds the burst state below, but is not reported
         if publish:
-            _store_release(dec, k, 2 if cont else 1)
+            if y[k] < own_lo + half or y[k] >= own_hi - half:  # only neighbours' halos read it
+                _store_release(dec, k, 2 if cont else 1)
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border):
-            out_lt[k] = math.sqrt(a * a + b * b)
-            out_vx[k] = np.nan
-            out_vy[k] = np.nan
-            out_valid[k] = False
+            out_lt[j] = math.sqrt(a * a + b * b)
+            out_vx[j] = np.nan
+            out_vy[j] = np.nan
+            out_valid[j] = False
         elif ok:
             g2 = a * a + b * b
-            out_lt[k] = math.sqrt(g2)
-            out_vx[k] = a / g2 * 1e6
-            out_vy[k] = b / g2 * 1e6
-            out_valid[k] = True
+            out_lt[j] = math.sqrt(g2)
+            out_vx[j] = a / g2 * 1e6
+            out_vy[j] = b / g2 * 1e6
+            out_valid[j] = True
         else:
-            out_lt[k] = np.nan
-            out_vx[k] = np.nan
-            out_vy[k] = np.nan
-            out_valid[k] = False
+            out_lt[j] = np.nan
+            out_vx[j] = np.nan
+            out_vy[j] = np.nan
+            out_valid[j] = False
         prev_t[si] = t_ev
         # start-up rule: an event without estimate inside a burst keeps the burst's lifetime
         if ok or not (startup and cont):
-            prev_lt[si] = out_lt[k]
-        if not out_valid[k]:
-            out_lt[k] = np.nan  # a border event's lifetime was kept above only for its burst state
+            prev_lt[si] = out_lt[j]
+        if not out_valid[j]:
+            out_lt[j] = np.nan  # a border event's lifetime was kept above only for its burst state
         prev_pol[si] = pk
     return idx.shape[0]
 

@@ -148,11 +148,13 @@ def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, pr
                     j0 = cursor[s]
                     o0 = off[s]
                     o1 = off[s + 1]
+                    a = starts[s]
+                    b = starts[s + 1]
                     j = _intra_stream(x, y, t, p, seg, j0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
                                       prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
                                       dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
                                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
-                                      startup, border, out_lt, out_vx, out_vy, out_valid, wf, wi)
+                                      startup, border, out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b], wf, wi)
                     _store_release(cursor, s, j)
                     _store_release(busy, s, 0)
                     progressed = progressed or j > j0
@@ -160,7 +162,7 @@ def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, pr
             if finished == n_tiles:
                 break
             idle = 0 if progressed else idle + 1
-            if idle > 0:
+            if idle > 0:  # every strip waited _SPINS reads in vain: give the core away
                 _sched_yield()
 
 
@@ -189,9 +191,16 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     for s in range(n_tiles):
         for g, l in zip(state, local):
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
+    # outputs per slot (each strip writes its own memory), then put in place
+    slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     _intra_parallel(min(n_tiles, numba.get_num_threads()), x, y, t, p, g0, idx, starts, off, *local, lo, rows,
                     own_lo, own_hi, np.zeros(x.shape[0], np.int8), kernel_args[0], width, height, *kernel_args[1:],
-                    *outs)
+                    *slot_outs)
+    ys = y[idx]
+    tile_of = np.repeat(np.arange(n_tiles), np.diff(starts))
+    owned = (ys >= own_lo[tile_of]) & (ys < own_hi[tile_of])
+    for o, so in zip(outs, slot_outs):
+        o[idx[owned]] = so[owned]
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
         for g, l in zip(state, local):
