@@ -140,6 +140,10 @@ def _test(test: Test, claim: Claim, vals: dict, sections) -> tuple[bool | None, 
 
 def _groups(table: ResultsTable, claim: Claim):
     rows = table.query(experiment=claim.experiment, **({"dataset": claim.dataset} if claim.dataset else {}))
+    # only the rows of the claim's metrics (and the frame counts): other numbers of the experiment, e.g.
+    # its diagnostics, form no group of their own
+    metrics = {t.metric for t in claim.tests} | {"cdm_n"}
+    rows = [r for r in rows if r["metric"] in metrics]
     keys = list(dict.fromkeys((r["dataset"], r["reference"]) for r in rows))
     for dataset, ref in keys:
         sub = [r for r in rows if r["dataset"] == dataset and r["reference"] == ref]

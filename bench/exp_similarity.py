@@ -5,7 +5,10 @@ frame time (from 30 ms after the first event on, so that no method is judged
 before its window could fill) each method's edge map is compared by CDM with
 
 * Canny on the clean grey frame, for each Canny setting (``canny_<name>``), and
-* the simulator's exact edge map at that time (``exact``).
+* the simulator's exact edge map at that time (``exact``: every pixel whose
+  open square a boundary crosses) and its thin exact edge map (``exact_thin``:
+  one pixel per boundary crossing of each row and column, as thin as Canny's;
+  :mod:`evedge.sim.thin_edges`).
 
 Both lifetime methods run under each display policy of
 :mod:`evedge.bench.methods` (``proposed``/``mueggler``: predecessor display,
@@ -88,6 +91,24 @@ def simulate_scene(name, *, seed: int = 0, duration_s: float | None = None,
     if frame_rate_hz is not None:
         kwargs["frame_rate_hz"] = frame_rate_hz
     return simulate(load_scene(path), **kwargs)
+
+
+def _thin_exact(rec, times_us):
+    """The simulator's thin exact edge maps (:func:`evedge.sim.thin_edge_map`) at ``times_us``, or None.
+
+    Rebuilt from the scene stored in the recording's metadata; None when it has
+    none or its renderer has no analytic geometry (mesh scenes).
+    """
+    from evedge.sim import parse_scene, thin_edge_map
+
+    raw = rec.metadata.get("scene") if isinstance(rec.metadata, dict) else None
+    if not isinstance(raw, dict):
+        return None
+    scene = parse_scene(raw, str(rec.metadata.get("scene_file", "<recording>")))
+    try:
+        return np.stack([thin_edge_map(scene, float(t) / 1e6) for t in times_us]) if len(times_us) else None
+    except NotImplementedError:
+        return None
 
 
 def sections_us(metadata: dict, t_end_us: int) -> dict[str, tuple[int, int]]:
@@ -190,6 +211,9 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
         pos = np.searchsorted(et, times)
         if np.all(pos < et.size) and np.array_equal(et[np.minimum(pos, et.size - 1)], times):
             refs["exact"] = rec.edges.images[pos].astype(bool)
+    thin = _thin_exact(rec, times)
+    if thin is not None:
+        refs["exact_thin"] = thin
     count_n = count_for(refs)
     methods = methods_for(displays) + ACCUMULATION_METHODS
     if diagnostics:

@@ -38,7 +38,9 @@ experiment runs both:
     display (METHOD.md section 4), and it treats both methods alike.
 ``lifetime_only`` (secondary; keys ``proposed_noclear``, ``mueggler_noclear``)
     The paper's definition alone: a pixel is edge while its newest event is
-    alive (``t_e <= T < t_e + tau_e``), nothing cleared.
+    alive (``t_e <= T < t_e + tau_e``), nothing cleared; burst-aware (issue 11):
+    an event that continues its pixel's burst is alive from the burst's first
+    event (:data:`evedge.detector.edges.DISPLAY_BURST_LIFETIMES`).
 
 The accumulation baselines do not depend on the policy. Lifetimes are computed
 once per recording and method and reused for every frame and both policies.
@@ -68,7 +70,7 @@ PRIMARY_DISPLAY_WHY = (
 
 #: Human-readable policy names.
 DISPLAY_LABELS = {"predecessor": "predecessor display (pixel behind each event cleared)",
-                  "lifetime_only": "lifetime-only display (nothing cleared)"}
+                  "lifetime_only": "lifetime-only display (nothing cleared; a burst lives from its first event)"}
 
 #: Time origin shift of ``mueggler_t0``.
 MUEGGLER_T0_SHIFT_US = 1_000_000

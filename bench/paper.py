@@ -29,7 +29,7 @@ from evedge.registry import Registry
 
 from .methods import DISPLAYS, display_record
 from .results import ResultsTable
-from .verdicts import all_verdicts, display_summary
+from .verdicts import all_verdicts, display_summary, policy_effect, verdict_counts
 
 #: The experiment registry: name -> ``run(ctx: PaperRun) -> list of result rows``. Each experiment
 #: also fills its part of ``ctx.results`` (``results.json``) and ``ctx.figures``. Registered below,
@@ -179,12 +179,12 @@ def _lifetime(ctx: PaperRun) -> list[dict]:
     for ds, why in res["skipped"].items():
         ctx.results["skipped"][f"lifetime/{ds}"] = why
     ctx.figures["lifetime"] = res["figures"]
-    return lifetime_rows(res["lifetime"])
+    return lifetime_rows(res["lifetime"], res["datasets"])
 
 
 def _similarity(ctx: PaperRun) -> list[dict]:
     from .exp_similarity import run_similarity
-    from .results import cdm_rows
+    from .results import cdm_rows, diagnostic_rows
 
     scene = ctx.options.get("scene") or "shapes_translation"
     ctx.params["similarity"] = {
@@ -203,6 +203,7 @@ def _similarity(ctx: PaperRun) -> list[dict]:
             k: r[k] for k in ("sections_us", "frame_t_us", "frame_section", "count_n", "n_events")}
         ctx.params["similarity"]["count_n"] = r["count_n"]
         rows += cdm_rows("similarity", name, r["cdm"])
+        rows += diagnostic_rows(name, r["diagnostics"])
     ctx.figures["similarity"] = res["figures"]
     return rows
 
@@ -362,11 +363,16 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
         if rows:
             table.extend(rows, experiment=name)
     bar.close()
-    results["verdicts"] = all_verdicts(results, table)
+    # every verdict, claim line and headline number comes from the table; the report only renders them
     from .claims import evaluate
+    from .results import leaderboard
 
+    results["verdicts"] = all_verdicts(table)
+    results["verdict_counts"] = verdict_counts(results["verdicts"])
     results["claims"] = evaluate(table)
     results["display"] = dict(display_record(DISPLAYS), summary=display_summary(results["verdicts"]))
+    results["policy_effect"] = policy_effect(table)
+    board = leaderboard(table)
     wall = time.perf_counter() - t_start
     results["params"] = params
     results["run"] = {"date_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),
@@ -378,7 +384,7 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
              + [f"Skipped {k}: {v}" for k, v in results["skipped"].items()])
     # the report first: results.json appears only once the run's output is complete
     table.save(out_dir / "results")
-    report = write_report(out_dir / "report.html", results, figures=figures, notes=notes, table=table)
+    report = write_report(out_dir / "report.html", results, figures=figures, notes=notes, board=board)
     write_json_atomic(out_dir / "results.json", results)
     results["report"] = str(report)
     results["table"] = table

@@ -136,6 +136,17 @@ def _split_rows(log_delays: np.ndarray, who: str):
     except ValueError as err:
         raise NoRegionsError(f"{who}: {err}") from None
 
+#: How :func:`regions_from_truth` finds the regions (shown as the verdict's evidence).
+TRUTH_METHOD = "rows grouped by their median true lifetime (simulator truth)"
+
+
+def delays_method(min_row_share: float) -> str:
+    """How :func:`regions_from_delays` finds the regions with this ``min_row_share`` (evidence text)."""
+    return (f"per-row median of the model-free horizontal neighbour delay; rows with at least "
+            f"{min_row_share:g} x the median row's events; 1-D 2-means on log10 of the row medians; "
+            f"each region keeps its longest run of consecutive rows")
+
+
 def regions_from_delays(events: np.ndarray, sensor_size, *, min_row_share: float = 0.25,
                         min_ratio: float = 1.25) -> dict:
     """Two speed regions (sets of rows) from the per-row median neighbour delay.
@@ -188,9 +199,7 @@ def regions_from_delays(events: np.ndarray, sensor_size, *, min_row_share: float
     if not med["slow"] >= min_ratio * med["fast"]:
         raise NoRegionsError(f"regions_from_delays: no distinct speed bands (median delays {med['slow']:.0f} and "
                          f"{med['fast']:.0f} us differ by less than a factor {min_ratio:g})")
-    return {"method": (f"per-row median of the model-free horizontal neighbour delay; rows with at least "
-                       f"{min_row_share:g} x the median row's events; 1-D 2-means on log10 of the row medians; "
-                       f"each region keeps its longest run of consecutive rows"),
+    return {"method": delays_method(min_row_share), "min_row_share": float(min_row_share), "from_truth": False,
             "rows": rows, "row_median_delay_us": [None if not np.isfinite(v) else float(v) for v in row_med],
             "threshold_delay_us": float(10.0 ** thr),
             "median_delay_us": med}
@@ -230,7 +239,7 @@ def regions_from_truth(events: np.ndarray, truth_lifetime_us, sensor_size) -> di
     thr, upper = _split_rows(np.log10(row_med[use]), "regions_from_truth")
     rows = {"slow": use[upper].tolist(), "fast": use[~upper].tolist()}
     truth = {k: float(np.median(tv[np.isin(y, r)])) for k, r in rows.items()}
-    return {"method": "rows grouped by their median true lifetime (simulator truth)", "rows": rows,
+    return {"method": TRUTH_METHOD, "from_truth": True, "rows": rows,
             "row_median_truth_us": [None if not np.isfinite(v) else float(v) for v in row_med],
             "threshold_delay_us": float(10.0 ** thr), "truth_lifetime_us": truth}
 

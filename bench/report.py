@@ -54,50 +54,41 @@ def _table(header, rows, left_cols=1) -> str:
     return f"<table><tr>{th}</tr>{''.join(body)}</table>"
 
 
-def _verdict_section(verdicts: list[dict]) -> str:
-    rows = []
-    for v in verdicts:
-        cls = {"holds": "holds", "fails": "fails"}.get(v["status"], "nc")
-        rows.append([_e(v["claim"]), f"<b>{_e(v['status'].upper())}</b>", _e(v["evidence"])])
+def _verdict_section(verdicts: list[dict], counts: dict) -> str:
     rows_html = [f"<tr class='{'holds' if v['status'] == 'holds' else 'fails' if v['status'] == 'fails' else 'nc'}'>"
-                 f"<td class='l'>{r[0]}</td><td class='l'>{r[1]}</td><td class='l'>{r[2]}</td></tr>"
-                 for v, r in zip(verdicts, rows)]
-    n_h = sum(v["status"] == "holds" for v in verdicts)
-    n_f = sum(v["status"] == "fails" for v in verdicts)
-    head = (f"<p>{n_h} claims hold, {n_f} fail, {len(verdicts) - n_h - n_f} not checked in this run. "
+                 f"<td class='l'>{_e(v['claim'])}</td><td class='l'><b>{_e(v['status'].upper())}</b></td>"
+                 f"<td class='l'>{_e(v['evidence'])}</td></tr>" for v in verdicts]
+    head = (f"<p>{counts.get('holds', 0)} claims hold, {counts.get('fails', 0)} fail, "
+            f"{counts.get('not_checked', 0)} not checked in this run. "
             "Each verdict is computed from the numbers below (see <code>evedge.bench.verdicts</code> "
             "for the exact rules).</p>")
     return head + ("<table><tr><th class='l'>claim</th><th class='l'>verdict</th><th class='l'>evidence</th></tr>"
                    + "".join(rows_html) + "</table>")
 
 
-def _policy_effect_text(results: dict) -> str:
-    """The display policy's and the estimator's effect on the median CDM (numbers from verdicts.policy_effect)."""
-    from .verdicts import policy_effect
-
-    e = policy_effect(results)
-    if e is None:
+def _policy_effect_text(effect: dict | None) -> str:
+    """The display policy's and the estimator's effect on the median CDM (``results["policy_effect"]``,
+    computed by :func:`evedge.bench.verdicts.policy_effect` from the table)."""
+    if not effect:
         return ""
+    e = effect
     return (f" (in this run, switching the policy moves a lifetime method's median CDM by up to "
             f"{e['policy_max']:.1f} points, median {e['policy_median']:.1f}; switching the estimator, proposed vs "
             f"Mueggler under one policy, by up to {e['estimator_max']:.1f}, median {e['estimator_median']:.1f})")
 
 
 def _display_headline(results: dict) -> str:
-    """The display policy in one paragraph, with the CDM outcome under each policy (from the verdicts)."""
-    from .verdicts import display_summary
-
-    verdicts = results.get("verdicts", [])
-    if not any(v.get("display") for v in verdicts):
+    """The display policy in one paragraph, with the CDM outcome under each policy (``results["display"]``)."""
+    summ = (results.get("display") or {}).get("summary")
+    if not summ or not any(p["n"] for p in summ["policies"].values()):
         return ""
-    summ = display_summary(verdicts)
     rows = []
     for name, p in summ["policies"].items():
         rows.append([_e(name + (" (primary)" if name == summ["primary"] else "")), _e(p["label"]),
                      _e(p["holds"]), _e(p["fails"]), _e(p["not_checked"]),
                      _e("; ".join(p["failed_claims"]) or "none")])
     explain = ("<p class='small'>A lifetime method's edge map depends on its display policy"
-               + _e(_policy_effect_text(results))
+               + _e(_policy_effect_text(results.get("policy_effect")))
                + "; both lifetime methods are therefore always shown "
                "under the same policy, and the CDM claims are checked under each. <i>Predecessor display</i>: "
                "each event keeps its pixel alive for its lifetime and clears the pixel behind it in its motion "
@@ -268,7 +259,7 @@ def _dict_block(d) -> str:
     return f"<pre>{_e(json.dumps(to_jsonable(d), indent=1))}</pre>"
 
 
-def write_report(path, results: dict, *, figures: dict[str, list], notes: list[str], table=None) -> Path:
+def write_report(path, results: dict, *, figures: dict[str, list], notes: list[str], board: dict | None = None) -> Path:
     """Write the HTML report (rendered through ``bench/templates/report.html.j2``).
 
     Parameters
@@ -282,17 +273,16 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
         Experiment -> list of PNG paths (inlined).
     notes : list of str
         Caveats and definitions shown at the end.
-    table : ResultsTable, optional
-        The long results table; the report opens with its leaderboard.
+    board : dict, optional
+        The leaderboard (:func:`evedge.bench.results.leaderboard` of the run's table); the report
+        opens with it. Nothing is computed here: the claim lines are ``results["claims"]``, the
+        verdict counts ``results["verdict_counts"]``, the policy headline ``results["display"]``.
     """
     from markupsafe import Markup
 
     from .report_render import environment
-    from .results import ResultsTable, leaderboard
-    from .claims import evaluate
 
-    table = table if table is not None else ResultsTable()
-    board = leaderboard(table)
+    board = board or {"columns": [], "rows": [], "winners": {}}
     sections = []
     if results.get("fmeasure"):
         sections.append(("1. RANSAC inlier decision and lifetime error (paper fig. 7)",
@@ -322,9 +312,9 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
                          "display); the tables below list both policies.", figures.get("real", []),
                          Markup(_real_section(results["real"], results.get("real_frames", {})))))
     html_text = environment().get_template("report.html.j2").render(
-        run=results.get("run", {}), board=board, claims=evaluate(table),
+        run=results.get("run", {}), board=board, claims=results.get("claims") or [],
         display_headline=Markup(_display_headline(results)),
-        verdict_table=Markup(_verdict_section(results.get("verdicts", []))),
+        verdict_table=Markup(_verdict_section(results.get("verdicts", []), results.get("verdict_counts") or {})),
         skipped=results.get("skipped") or {}, errors=results.get("errors") or {}, sections=sections, notes=notes,
         params=Markup(_dict_block(results.get("params", {}))), timing=Markup(_dict_block(results.get("run", {}).get("timing_s", {}))))
     return write_text_atomic(path, html_text)

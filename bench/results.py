@@ -3,7 +3,8 @@
 Columns :data:`COLUMNS`: ``experiment``, ``dataset``, ``reference`` (the truth
 a number is measured against: ``exact``, ``canny_matlab_0.3``, ``truth``,
 ``noise_labels``, or ``""``), ``method`` (a registry name: ``intra``,
-``mueggler``, ``time``, ``count`` or a plug-in's), ``variant`` (the compared
+``mueggler``, ``time``, ``count`` or a plug-in's; in the lifetime experiment also ``truth``, the
+simulator's lifetimes, and ``regions``, how its speed regions were found), ``variant`` (the compared
 configuration's result key, e.g. ``acc_1ms``, or the method itself),
 ``display`` (the display policy, ``""`` when it does not apply), ``section``
 (``slow``, ``fast``, ``all``, a frame index, ...), ``metric`` and ``value``
@@ -216,31 +217,161 @@ def real_rows(recording: str, per_method: Mapping) -> list[dict]:
     return rows
 
 
-def lifetime_rows(lifetime: Mapping) -> list[dict]:
-    """``lifetime[dataset][method] = {scalars, regions: {region: {scalars}}}`` -> rows (section: region or all)."""
+#: Fields of a histogram peak (``exp_lifetime``'s ``peaks`` / ``shoulder_peaks``) -> metric suffix.
+_PEAK_FIELDS = {"mode": "mode_us", "median": "median_us", "mad": "mad_us", "mad_log10": "mad_log10",
+                "fwhm_log10": "fwhm_log10", "fraction": "fraction"}
+#: A shoulder-aware component's ``kind`` as a number (metric ``shoulder_<k>_is_shoulder``).
+_PEAK_KINDS = ("peak", "shoulder")
+
+
+def _scalar_rows(base: dict, res: Mapping, section: str) -> list[dict]:
+    return [{**base, "section": section, "metric": metric, "value": num}
+            for metric, v in res.items() if (num := _number(v)) is not None]
+
+
+def _peak_rows(base: dict, prefix: str, peaks) -> list[dict]:
+    """One row per field of each peak: ``<prefix>_<k>_<field>`` (k from 0), and ``n_<prefix>s``."""
+    rows = [{**base, "section": "all", "metric": f"n_{prefix}s", "value": float(len(peaks))}]
+    for k, p in enumerate(peaks):
+        for name, suffix in _PEAK_FIELDS.items():
+            if name in p:
+                rows.append({**base, "section": "all", "metric": f"{prefix}_{k}_{suffix}", "value": _number(p[name])})
+        if "kind" in p:
+            rows.append({**base, "section": "all", "metric": f"{prefix}_{k}_is_shoulder",
+                         "value": float(_PEAK_KINDS.index(p["kind"]))})
+    return rows
+
+
+def lifetime_rows(lifetime: Mapping, datasets: Mapping | None = None) -> list[dict]:
+    """The lifetime experiment as rows: everything its verdict reads (:func:`lifetime_view` reads them back).
+
+    ``lifetime[dataset][key]`` (key ``proposed``, ``mueggler``, ``truth``) holds scalars (section
+    ``all``), histogram peaks (``peak_<k>_mode_us``, ``peak_<k>_fwhm_log10``, ...; shoulder-aware
+    components ``shoulder_<k>_...``; counts ``n_peaks``, ``n_shoulders``), per speed region spreads
+    (section = region: ``mad_log10``, ``iqr_over_median``, ``frac_within``, ``median_rel_error``, ...;
+    ``<region>_core`` without the band ends) and Mueggler on the event buffer's output (variant
+    ``mueggler_on_buffer``). ``datasets[dataset]["regions"]`` gives how the regions were found
+    (variant ``regions``: ``regions_from_truth``, ``regions_min_row_share``). The reference is
+    ``truth`` on a dataset with true lifetimes, else ``""``.
+    """
     rows = []
     for ds, per in lifetime.items():
+        has_truth = any(isinstance(r, Mapping) and "median_rel_error" in r for k, r in per.items() if k != "truth")
+        ref = "truth" if has_truth else ""
         for key, res in per.items():
-            if key == "truth" or not isinstance(res, Mapping):
+            if not isinstance(res, Mapping):
                 continue
             method = {"proposed": "intra"}.get(key, key)
-            variant = key
-            if key.endswith("_on_buffer"):
-                method = key[: -len("_on_buffer")]
-            base = {"dataset": ds, "reference": "truth" if "median_rel_error" in res else "",
-                    "method": method, "variant": variant}
-            for metric, v in res.items():
-                num = _number(v)
-                if num is not None:
-                    rows.append({**base, "section": "all", "metric": metric, "value": num})
+            base = {"dataset": ds, "reference": ref, "method": method, "variant": key}
+            rows += _scalar_rows(base, res, "all")
+            rows += _peak_rows(base, "peak", res.get("peaks") or [])
+            if "shoulder_peaks" in res:
+                rows += _peak_rows(base, "shoulder", res["shoulder_peaks"])
             for group in ("regions", "regions_core"):
                 for region, q in (res.get(group) or {}).items():
-                    for metric, v in (q or {}).items():
-                        num = _number(v)
-                        if num is not None:
-                            rows.append({**base, "section": region if group == "regions" else f"{region}_core",
-                                         "metric": metric, "value": num})
+                    rows += _scalar_rows(base, q or {}, region if group == "regions" else f"{region}_core")
+            buffered = res.get("on_buffered_events")
+            if isinstance(buffered, Mapping):
+                bbase = dict(base, variant=f"{key}_on_buffer")
+                rows += _scalar_rows(bbase, buffered, "all")
+                for region, q in (buffered.get("regions") or {}).items():
+                    rows += _scalar_rows(bbase, q or {}, region)
+        reg = ((datasets or {}).get(ds) or {}).get("regions") or {}
+        if "from_truth" in reg:
+            base = {"dataset": ds, "reference": ref, "method": "regions", "variant": "regions", "section": "all"}
+            rows.append({**base, "metric": "regions_from_truth", "value": float(reg["from_truth"])})
+            if "min_row_share" in reg:
+                rows.append({**base, "metric": "regions_min_row_share", "value": reg["min_row_share"]})
     return rows
+
+
+def _peaks_of(values: Mapping, prefix: str) -> list[dict]:
+    n = values.get(f"n_{prefix}s")
+    if n is None:
+        return []
+    out = []
+    for k in range(int(n)):
+        p = {name: values[f"{prefix}_{k}_{suffix}"] for name, suffix in _PEAK_FIELDS.items()
+             if f"{prefix}_{k}_{suffix}" in values}
+        if f"{prefix}_{k}_is_shoulder" in values:
+            p["kind"] = _PEAK_KINDS[int(values[f"{prefix}_{k}_is_shoulder"])]
+        out.append(p)
+    return out
+
+
+def lifetime_view(table: ResultsTable, experiment: str = "lifetime") -> tuple[dict, dict]:
+    """``(lifetime, datasets)`` in the shapes :func:`evedge.bench.verdicts.lifetime_verdicts` reads, from the rows
+    of :func:`lifetime_rows` (NaN where the experiment had None)."""
+    from .regions import TRUTH_METHOD, delays_method
+
+    flat: dict = {}
+    for r in table.query(experiment=experiment):
+        (flat.setdefault(r["dataset"], {}).setdefault(r["variant"], {}).setdefault(r["section"], {}))[r["metric"]] = \
+            r["value"]
+    lifetime, datasets = {}, {}
+    for ds, per in flat.items():
+        out = lifetime[ds] = {}
+        for key, sections in per.items():
+            if key == "regions" or key.endswith("_on_buffer"):
+                continue
+            top = sections.get("all", {})
+            res = {m: v for m, v in top.items()
+                   if not (m.startswith(("peak_", "shoulder_")) or m in ("n_peaks", "n_shoulders"))}
+            res["peaks"] = _peaks_of(top, "peak")
+            if "n_shoulders" in top:
+                res["shoulder_peaks"] = _peaks_of(top, "shoulder")
+            regions = {s: q for s, q in sections.items() if s != "all" and not s.endswith("_core")}
+            core = {s[: -len("_core")]: q for s, q in sections.items() if s.endswith("_core")}
+            if regions:
+                res["regions"] = regions
+            if core:
+                res["regions_core"] = core
+            buffered = per.get(f"{key}_on_buffer")
+            if buffered:
+                res["on_buffered_events"] = dict(buffered.get("all", {}),
+                                                 regions={s: q for s, q in buffered.items() if s != "all"})
+            out[key] = res
+        how = (per.get("regions") or {}).get("all", {})
+        if "regions_from_truth" in how:
+            datasets[ds] = {"regions": {"method": TRUTH_METHOD if how["regions_from_truth"]
+                                        else delays_method(how.get("regions_min_row_share", 0.25))}}
+    return lifetime, datasets
+
+
+def diagnostic_rows(dataset: str, diagnostics: Mapping) -> list[dict]:
+    """The similarity experiment's diagnostics (they explain a lost CDM comparison) as rows.
+
+    ``pixel_ratio[reference][key][section]`` -> metric ``edge_pixel_ratio``;
+    ``lifetime[key][section] = {n_signal, coverage, median_rel_error, over_2x, under_2x}`` ->
+    metrics ``signal_<stat>`` (reference ``truth``).
+    """
+    rows = []
+    for ref, per in (diagnostics.get("pixel_ratio") or {}).items():
+        for key, sections in per.items():
+            for section, v in sections.items():
+                rows.append({"dataset": dataset, "reference": ref, **_method_columns(key), "section": section,
+                             "metric": "edge_pixel_ratio", "value": _number(v)})
+    for key, sections in (diagnostics.get("lifetime") or {}).items():
+        for section, stats in sections.items():
+            for stat, v in stats.items():
+                rows.append({"dataset": dataset, "reference": "truth", **_method_columns(key), "section": section,
+                             "metric": f"signal_{stat}", "value": _number(v)})
+    return rows
+
+
+def diagnostics_view(table: ResultsTable, experiment: str = "similarity") -> dict:
+    """``{dataset: {"pixel_ratio": {ref: {key: {section: v}}}, "lifetime": {key: {section: {stat: v}}}}}``
+    (what :func:`evedge.bench.verdicts.cdm_verdicts` reads), from the rows of :func:`diagnostic_rows`."""
+    out: dict = {}
+    for r in table.query(experiment=experiment):
+        if r["metric"] == "edge_pixel_ratio":
+            (out.setdefault(r["dataset"], {}).setdefault("pixel_ratio", {}).setdefault(r["reference"], {})
+             .setdefault(r["variant"], {}))[r["section"]] = r["value"]
+        elif r["metric"].startswith("signal_"):
+            stat = r["metric"][len("signal_"):]
+            (out.setdefault(r["dataset"], {}).setdefault("lifetime", {}).setdefault(r["variant"], {})
+             .setdefault(r["section"], {}))[stat] = int(r["value"]) if stat == "n_signal" else r["value"]
+    return out
 
 
 def ransac_rows(fmeasure: Mapping, sensitivity: Mapping | None = None) -> list[dict]:

@@ -1,6 +1,6 @@
 """The paper's claims, checked against the numbers of this run.
 
-Every verdict is computed from ``results`` (never written by hand): it says
+Every verdict is computed from the long results table (never written by hand): it says
 whether the claim holds, and the numbers it rests on. A claim that cannot be
 checked (missing experiment) says so.
 
@@ -479,52 +479,50 @@ def display_summary(verdicts: list[dict]) -> dict:
     return {"primary": PRIMARY_DISPLAY, "why": PRIMARY_DISPLAY_WHY, "policies": pol, "text": text}
 
 
-def all_verdicts(results: dict, table=None) -> list[dict]:
-    """Every verdict from a results dictionary (keys fmeasure, lifetime, cdm, real).
+def all_verdicts(table) -> list[dict]:
+    """Every verdict, computed from the long results table alone.
 
-    With ``table`` (the long :class:`~evedge.bench.results.ResultsTable`), the
-    CDM, real-frame and RANSAC numbers the verdicts decide on are read from the
-    table (:func:`~evedge.bench.results.cdm_view`, ``real_view``, ``ransac_view``);
-    the diagnostics that explain the CDM and the lifetime histograms (peaks are
-    lists, not rows) still come from ``results``.
+    ``table`` is the :class:`~evedge.bench.results.ResultsTable` of a run; the
+    numbers each check reads (CDM summaries and their diagnostics, real-frame
+    medians, the RANSAC study, the lifetime spreads, histogram peaks and speed
+    regions) are taken from its rows through the views of
+    :mod:`evedge.bench.results` (``cdm_view``, ``diagnostics_view``,
+    ``real_view``, ``ransac_view``, ``lifetime_view``); nothing else is read.
     """
-    cdm, real = results.get("cdm") or {}, results.get("real") or {}
-    fmeasure, sensitivity = results.get("fmeasure") or {}, results.get("truth_tolerance_sensitivity")
-    if table is not None:
-        from .results import cdm_view, ransac_view, real_view
+    from .results import cdm_view, diagnostics_view, lifetime_view, ransac_view, real_view
 
-        cdm, real = cdm_view(table), real_view(table)
-        if table.query(experiment="ransac"):
-            fmeasure, sensitivity = ransac_view(table)
-    return (cdm_verdicts(cdm, results.get("cdm_diagnostics"))
-            + intra_verdicts(fmeasure, sensitivity)
-            + lifetime_verdicts(results.get("lifetime") or {}, results.get("lifetime_datasets"))
-            + real_verdicts(real))
+    fmeasure, sensitivity = ransac_view(table)
+    lifetime, datasets = lifetime_view(table)
+    return (cdm_verdicts(cdm_view(table), diagnostics_view(table))
+            + intra_verdicts(fmeasure, sensitivity or None)
+            + lifetime_verdicts(lifetime, datasets)
+            + real_verdicts(real_view(table)))
 
 
-def policy_effect(results: dict) -> dict | None:
+def verdict_counts(verdicts: list[dict]) -> dict:
+    """``{"holds": n, "fails": n, "not_checked": n}`` of a list of verdicts (for the report's heading)."""
+    return {k: sum(v["status"] == s for v in verdicts)
+            for k, s in (("holds", "holds"), ("fails", "fails"), ("not_checked", "not checked"))}
+
+
+def policy_effect(table) -> dict | None:
     """How far the display policy and the estimator move the median CDM in this run (computed, not asserted).
 
-    Over every scene/truth/section (slow, fast) and real recording/reference:
+    Over every scene/truth/section (slow, fast) of the similarity rows and real recording/reference of
+    the real-frame rows of ``table`` (metric ``cdm_median``):
     ``policy``: |median under one policy - under the other| per lifetime method;
     ``estimator``: |proposed - Mueggler| under one policy. Max and median of each; None without both.
     """
     from .methods import method_key
 
-    def medians():
-        for per_truth in (results.get("cdm") or {}).values():
-            for per in per_truth.values():
-                for section in ("slow", "fast"):
-                    yield {k: np.nan if (v.get(section) or {}).get("median") is None
-                           else float(v[section]["median"]) for k, v in per.items()}
-        for per in (results.get("real") or {}).values():
-            refs = sorted({ref for v in per.values() for ref in (v.get("median") or {})})
-            for ref in refs:
-                yield {k: np.nan if (v.get("median") or {}).get(ref) is None else float(v["median"][ref])
-                       for k, v in per.items()}
-
+    groups: dict = {}
+    for r in table.rows:
+        if r["metric"] != "cdm_median" or (r["experiment"], r["section"]) not in (
+                ("similarity", "slow"), ("similarity", "fast"), ("real", "all")):
+            continue
+        groups.setdefault((r["experiment"], r["dataset"], r["reference"], r["section"]), {})[r["variant"]] = r["value"]
     policy, estimator = [], []
-    for med in medians():
+    for med in groups.values():
         for base in ("proposed", "mueggler"):
             a, b = (med.get(method_key(base, d), np.nan) for d in DISPLAYS[:2])
             if np.isfinite(a) and np.isfinite(b):

@@ -29,33 +29,33 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, cov
         tk = t[k]
         plane = p[k] * height
         lo = tk - tau_us
-        for dy in range(-1, 2):
-            yy = yk + dy
-            if yy < 0 or yy >= height:
-                continue
-            for dx in range(-1, 2):
-                if dx == 0 and dy == 0:
-                    continue
-                xx = xk + dx
-                if xx < 0 or xx >= width:
-                    continue
-                q = (plane + yy) * width + xx
+        n_support = 0
+        x0 = max(xk - 1, 0)
+        x1 = min(xk + 1, width - 1)
+        # the 3x3 neighbourhood over clipped ranges; the support test is branch-free
+        # (whether a neighbour fired within tau is unpredictable), the walk is not
+        for yy in range(max(yk - 1, 0), min(yk + 1, height - 1) + 1):
+            row = (plane + yy) * width
+            for xx in range(x0, x1 + 1):
+                q = row + xx
                 lt = last_t[q]
-                if lt != _NEVER and lt >= lo:
-                    # a neighbour fired within tau before (or at) this event
-                    supported[k] = True
-                    if not causal:
-                        # ...and this event supports every unreleased event of that
-                        # neighbour within tau before it
-                        g = head_g[q]
-                        stop = max(covered_g[q], base_g - 1)
-                        covered_g[q] = g
-                        while g > stop:
-                            j = g - base_g
-                            if t[j] < lo:
-                                break
-                            supported[j] = True
-                            g = prev[j]
+                # a neighbour (not the pixel itself) fired within tau before (or at) this event
+                near = (lt >= lo) & (lt != _NEVER) & ((xx != xk) | (yy != yk))
+                n_support += near
+                if near and not causal:
+                    # ...and this event supports every unreleased event of that
+                    # neighbour within tau before it
+                    g = head_g[q]
+                    stop = max(covered_g[q], base_g - 1)
+                    covered_g[q] = g
+                    while g > stop:
+                        j = g - base_g
+                        if t[j] < lo:
+                            break
+                        supported[j] = True
+                        g = prev[j]
+        if n_support > 0:
+            supported[k] = True
         pix = (plane + yk) * width + xk
         prev[k] = head_g[pix]
         head_g[pix] = base_g + k

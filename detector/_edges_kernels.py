@@ -12,7 +12,7 @@ _DY = np.array([0, 1, 1, 1, 0, -1, -1, -1], dtype=np.int64)
 
 @njit(cache=True)
 def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clear_behind, invalid_clears,
-                 dirx, diry):
+                 dirx, diry, p, burst, start_t, prev_lt, prev_pol):
     """Apply events in order to the per-pixel state (flat ``y * width + x``).
 
     ``last_t`` (int64) is the time of the pixel's newest counted event and
@@ -20,6 +20,14 @@ def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clea
     estimate is skipped, or with ``invalid_clears`` sets its pixel dead
     (``expiry = t``). With ``clear_behind`` a valid event also ends the life of
     the 8-neighbour behind it, opposite its flow rounded to 45 degrees.
+
+    Burst-aware expiry (``burst > 0``): ``start_t`` (int64), ``prev_lt`` (float,
+    NaN = none) and ``prev_pol`` (int8, -1 = none) hold, per pixel, the start of
+    its current burst and the lifetime and polarity of its newest valid event. A
+    valid event of the same polarity at most ``burst * prev_lt`` after that
+    event continues the burst, and its life is counted from the burst's start:
+    ``expiry = start + lifetime``. Otherwise it starts a burst (``expiry = t +
+    lifetime``, as with ``burst = 0``).
     """
     for k in range(x.shape[0]):
         pix = y[k] * width + x[k]
@@ -28,8 +36,17 @@ def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clea
                 last_t[pix] = t[k]
                 expiry[pix] = float(t[k])
             continue
+        start = t[k]
+        if burst > 0.0:
+            pk = np.int8(1) if p[k] else np.int8(0)
+            # prev_lt NaN (no valid event yet): the comparison is False
+            if prev_pol[pix] == pk and t[k] - last_t[pix] <= burst * prev_lt[pix]:
+                start = start_t[pix]
+            start_t[pix] = start
+            prev_lt[pix] = lt[k]
+            prev_pol[pix] = pk
         last_t[pix] = t[k]
-        expiry[pix] = t[k] + lt[k]
+        expiry[pix] = start + lt[k]
         if clear_behind:
             ang = math.atan2(-vy[k], -vx[k])
             # nearest of 8 directions; half-way angles round up (counter-clockwise)

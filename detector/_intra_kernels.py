@@ -30,6 +30,8 @@ from numba import njit
 
 from evedge._splitmix import _splitmix64
 
+from ._atomic import _load_acquire, _sched_yield, _store_release
+
 _NEVER = np.iinfo(np.int64).min
 
 
@@ -71,6 +73,9 @@ _LOG_TABLE_MAX = 121
 #: Candidate planes computed together (their chains of dependent operations overlap).
 _BATCH = 4
 
+#: Reads of an unpublished halo decision before a strip gives up (returns, or yields the core).
+_SPINS = 20_000
+
 #: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
 _EXACT_SUM = 2**53
 
@@ -93,8 +98,86 @@ def _scratch(nn):
 
 
 @njit(cache=True)
+def _degenerate(wf, n, lo, hi, min_points):
+    """Whether the window points with ``lo <= dt <= hi`` and the current event fix no plane through it.
+
+    Degenerate: fewer than ``min_points`` points (current event included), or
+    all points on one line through the current event (the origin).
+    """
+    m = 1
+    ux = 0.0
+    uy = 0.0
+    spread = False
+    for i in range(n):
+        v = wf[_DT, i]
+        if lo <= v <= hi:
+            m += 1
+            x = wf[_DX, i]
+            y = wf[_DY, i]
+            if ux == 0.0 and uy == 0.0:
+                ux = x
+                uy = y
+            elif ux * y - uy * x != 0.0:
+                spread = True
+    return m < min_points or not spread
+
+
+@njit(cache=True)
+def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
+    """The current event's cluster by single linkage in time (``split_gap_ratio > 0``), replacing 2-means.
+
+    The paper's 2-means (initial centroids: the window minimum and the current
+    time) has two failure modes on a real SAE. With *stale levels* (pixels that
+    skipped the current edge passage keep the time of one or two passages
+    before) the middle stale level lies nearer the current centroid than the
+    oldest one and joins the current cluster. On a clean *ramp* (levels 0, -L,
+    -2L behind an axis-aligned edge) the middle level sits on the centroids'
+    midpoint and timing jitter cuts it in two. Both come from a split that
+    ignores where the time gaps are. Here the cluster grows from the current
+    event (``dt = 0``) one window time at a time, always taking the nearest time
+    not yet in it (older or newer), while that gap is at most ``gap_ratio``
+    times the largest gap taken so far (gaps up to ``min_gap_us``, timing noise,
+    are always taken). One edge passage makes a chain of gaps of at most about
+    one lifetime; the gap to a stale level is the time between passages less
+    the window's span, many lifetimes. While the cluster is degenerate (see
+    :func:`_degenerate`: e.g. only the current event's own column of an
+    axis-aligned edge, whose pixels fire together) the next time is taken
+    whatever its gap: the cluster grows by the fewest time levels that fix a
+    plane (this replaces ``fallback_all_points``). The kept cluster is an
+    interval ``lo <= dt <= hi``; ``wi[_LAB, i]`` gets 1 inside.
+    """
+    lo = 0.0
+    hi = 0.0
+    big = min_gap_us  # largest gap taken so far (at least the timing noise)
+    for _ in range(n):
+        below = -np.inf
+        above = np.inf
+        for i in range(n):
+            v = wf[_DT, i]
+            if v < lo and v > below:
+                below = v
+            elif v > hi and v < above:
+                above = v
+        g_below = lo - below
+        g_above = above - hi
+        g = min(g_below, g_above)
+        if not math.isfinite(g):
+            break
+        if not (g <= gap_ratio * big or _degenerate(wf, n, lo, hi, min_points)):
+            break
+        big = max(big, g)
+        if g_below <= g_above:
+            lo = below
+        else:
+            hi = above
+    for i in range(n):
+        v = wf[_DT, i]
+        wi[_LAB, i] = 1 if lo <= v <= hi else 0
+
+
+@njit(cache=True)
 def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
-                min_inliers, intercept, fallback):
+                min_inliers, intercept, fallback, gap_ratio, on_plane):
     """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
 
     The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
@@ -187,6 +270,8 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
                 c1 = s1 / n1
         for i in range(n):
             wi[_LAB, i] = 1 if wi[_LAB, i] == cur else 0
+    if gap_ratio > 0.0:
+        _linkage_split(wf, wi, n, gap_ratio, thr_us, min_points)
 
     # ---- RANSAC on the kept cluster; a second attempt on all points when it is degenerate
     nin = -1
@@ -329,6 +414,8 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             syy += yq * wf[_KY, q]
             sxt += xq * wf[_KT, q]
             syt += yq * wf[_KT, q]
+        on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta,
+                                                                  thr_us, thr_rel, on_plane)
         if intercept:
             # centred sums: least squares with a free time offset (the current event
             # becomes one point among the inliers instead of a fixed anchor)
@@ -346,8 +433,42 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
             # a flat plane (all inliers at the current time): no finite lifetime
             return False, np.nan, np.nan
+        if not on:
+            return False, np.nan, np.nan
         return True, a, b
     return False, np.nan, np.nan
+
+
+@njit(cache=True)
+def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_rel, tol):
+    """Whether the current event (the origin) lies on the plane of its past inliers (``event_on_plane``).
+
+    ``s*`` are the raw (uncentred) least-squares sums over the winner's inliers,
+    the current event included (it adds 1 to ``s1`` and 0 to the others). The
+    plane ``dt = a dx + b dy + c`` is fitted on the *past* inliers alone (leave the
+    current event out: a fit that includes it is pulled towards it); the event is
+    on it when its intra-pixel residual ``max(0, |c| - delta (|a| + |b|))`` is
+    within ``tol`` times the inlier threshold of that plane. False when the past inliers
+    alone fix no plane (all on one line). A background-activity event fired
+    after an edge passed its pixel (or before it arrives) is off that plane by
+    the time between them: no estimate.
+    """
+    n = s1 - 1.0
+    if n < 3.0:
+        return False
+    cxx = sxx - sx * sx / n
+    cxy = sxy - sx * sy / n
+    cyy = syy - sy * sy / n
+    cxt = sxt - sx * st / n
+    cyt = syt - sy * st / n
+    det = cxx * cyy - cxy * cxy
+    if not det > 1e-9 * (cxx * cyy) or not det > 0.0:
+        return False
+    a = (cxt * cyy - cyt * cxy) / det
+    b = (cyt * cxx - cxt * cxy) / det
+    c = (st - a * sx - b * sy) / n
+    r = max(0.0, abs(c) - delta * (abs(a) + abs(b)))
+    return r <= tol * (thr_us + thr_rel * math.sqrt(a * a + b * b))
 
 
 @njit(cache=True)
@@ -357,14 +478,58 @@ def _log_fail(stop_prob):
 
 
 @njit(cache=True)
-def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, per_pol, half, delta,
-                  thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept, fallback, seed,
-                  out_lt, out_vx, out_vy, out_valid):
-    """SAE update, window gathering, 2-means and RANSAC for each event in order.
+def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
+    """The window points around pixel ``(xk, yk)`` of the SAE plane at ``base``, relative to time ``tk``.
 
-    ``sae`` is the flat SAE (``(plane * height + y) * width + x``), updated in place;
-    ``g0`` is the global index of the first event (seeds its random stream).
-    Flow is written in px/s.
+    Fills ``wf[_DX/_DY/_DT]`` and ``wi[_IT]``; never-fired pixels and pixels outside
+    the sensor (rows ``0 .. height - 1`` of the plane) are not points, nor is the
+    centre. Returns the number of points.
+    """
+    n = 0
+    # clipped ranges: the same cells in the same order as testing each against the sensor
+    for yy in range(max(yk - half, 0), min(yk + half, height - 1) + 1):
+        row = base + yy * width
+        oy = yy - yk
+        for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
+            v = sae[row + xx]
+            if v == _NEVER or (xx == xk and oy == 0):
+                continue
+            d = v - tk
+            wf[_DX, n] = xx - xk
+            wf[_DY, n] = oy
+            wf[_DT, n] = float(d)
+            wi[_IT, n] = d
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
+                  own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
+                  out_valid, wf, wi):
+    """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
+
+    ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
+    (made once by the caller: a strip may be resumed many times).
+
+    The state covers sensor rows ``row0 .. row0 + rows - 1`` of the ``width x height``
+    sensor (all of it, or a strip and its halo, see :mod:`evedge.detector._tiles`):
+    ``sae`` is the flat SAE (``(plane * rows + y - row0) * width + x``), updated in
+    place; rows outside it are treated as outside the sensor. Event ``k = idx[j]``
+    has global index ``g0 + k`` (it seeds its random stream) and writes
+    ``out_*[j]`` (flow in px/s; aligned with ``idx``, so a strip's outputs are its
+    own memory, not interleaved with its neighbours') when it lies in the owned
+    rows ``own_lo <= y < own_hi``. Returns the index ``j`` where it stopped
+    (``idx.size`` at the end).
+
+    Halo (events outside the owned rows, only with strips): ``dec`` (int8, per
+    event ``k``; empty without strips) carries each event's burst decision from the
+    strip that owns it: an owned event within ``half`` rows of its strip's edges
+    publishes ``1`` (new burst) or ``2`` (continues its pixel's burst); a halo
+    event replays that decision (SAE update
+    only, no fit). A halo event whose decision is not published yet (``0``) is
+    waited for (``wait``), or ends the call (it returns that event's ``j``).
 
     Burst grouping (``burst > 0``): ``prev_lt`` (float, NaN = none) and ``prev_pol``
     (int8, -1 = none), laid out as ``sae`` and updated in place, hold the lifetime
@@ -374,68 +539,106 @@ def _intra_stream(x, y, t, p, g0, sae, prev_t, prev_lt, prev_pol, burst, width, 
     pixel keeps the burst's first time and the event is fitted at that time (its
     points are ``dt = t_window - t_burst_start``). Otherwise the pixel takes the
     event's time (the paper's SAE).
+
+    Start-up rule (``startup``, with ``burst > 0``): when the pixel's previous
+    event has the same polarity but no estimate (always so for the second event
+    of a pixel's first burst: nothing had history before it), the event is first
+    fitted as a continuation of the burst, and kept so when that fit gives a
+    lifetime ``L`` with the gap to the previous event at most ``burst * L``;
+    otherwise it is fitted again as a new burst. An event without estimate
+    inside a burst leaves the burst's lifetime in ``prev_lt`` (the next events
+    still continue the burst).
+
+    Border rule (``border > 0``): an event closer than ``border`` px to the sensor
+    edge (its window is clipped) is reported without estimate; its fit still
+    sets the burst state of its pixel, as any other event's.
     """
-    side = 2 * half + 1
-    wf, wi = _scratch(side * side)
     log_fail = _log_fail(stop_prob)
-    for k in range(x.shape[0]):
+    publish = dec.shape[0] > 0
+    for j in range(j0, idx.shape[0]):
+        k = idx[j]
         xk = x[k]
-        yk = y[k]
+        yk = y[k] - row0
         tk = t[k]
-        base = (p[k] if per_pol else 0) * height * width
+        base = (p[k] if per_pol else 0) * rows * width
         si = base + yk * width + xk
         pk = np.int8(1) if p[k] else np.int8(0)
+        if not (own_lo <= y[k] < own_hi):
+            # a halo event: its owner's burst decision, the SAE as it left it, no fit
+            dk = _load_acquire(dec, k)
+            spins = 0
+            while dk == 0:
+                # the owner is usually microseconds behind: spin a while before giving up
+                spins += 1
+                if spins > _SPINS:
+                    if not wait:
+                        return j
+                    _sched_yield()
+                dk = _load_acquire(dec, k)
+            if dk == 1:
+                sae[si] = tk
+            prev_t[si] = tk
+            continue
         # prev_lt is NaN when the previous event had no estimate: the comparison is False
-        if burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]:
-            t_ev = tk
-            tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
-        else:
-            t_ev = tk
-            sae[si] = tk
-        n = 0
-        big = 0
-        for oy in range(-half, half + 1):
-            yy = yk + oy
-            if yy < 0 or yy >= height:
-                continue
-            row = base + yy * width
-            for ox in range(-half, half + 1):
-                if ox == 0 and oy == 0:
-                    continue
-                xx = xk + ox
-                if xx < 0 or xx >= width:
-                    continue
-                v = sae[row + xx]
-                if v == _NEVER:
-                    continue
-                d = v - tk
-                wf[_DX, n] = ox
-                wf[_DY, n] = oy
-                wf[_DT, n] = float(d)
-                wi[_IT, n] = d
-                big = max(big, abs(d))
-                n += 1
-        ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback)
-        if ok:
+        cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
+        # start-up rule: the previous event of the burst has no estimate yet; try the continuation first
+        trial = startup and burst > 0.0 and not cont and prev_pol[si] == pk and math.isnan(prev_lt[si])
+        t_ev = tk
+        ok = False
+        a = np.nan
+        b = np.nan
+        for attempt in range(2):
+            if cont or trial:
+                tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
+            else:
+                tk = t_ev
+                sae[si] = tk
+            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half)
+            big = 0
+            for i in range(n):
+                big = max(big, abs(wi[_IT, i]))
+            ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
+                                   thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
+                                   fallback, gap_ratio, on_plane)
+            if not trial:
+                break
+            trial = False
+            if ok and t_ev - prev_t[si] <= burst * math.sqrt(a * a + b * b):
+                cont = True  # the continuation fits and its own lifetime covers the gap: keep it
+                break
+        # border rule: the fit still feeds the burst state below, but is not reported
+        if publish:
+            if y[k] < own_lo + half or y[k] >= own_hi - half:  # only neighbours' halos read it
+                _store_release(dec, k, 2 if cont else 1)
+        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border):
+            out_lt[j] = math.sqrt(a * a + b * b)
+            out_vx[j] = np.nan
+            out_vy[j] = np.nan
+            out_valid[j] = False
+        elif ok:
             g2 = a * a + b * b
-            out_lt[k] = math.sqrt(g2)
-            out_vx[k] = a / g2 * 1e6
-            out_vy[k] = b / g2 * 1e6
-            out_valid[k] = True
+            out_lt[j] = math.sqrt(g2)
+            out_vx[j] = a / g2 * 1e6
+            out_vy[j] = b / g2 * 1e6
+            out_valid[j] = True
         else:
-            out_lt[k] = np.nan
-            out_vx[k] = np.nan
-            out_vy[k] = np.nan
-            out_valid[k] = False
+            out_lt[j] = np.nan
+            out_vx[j] = np.nan
+            out_vy[j] = np.nan
+            out_valid[j] = False
         prev_t[si] = t_ev
-        prev_lt[si] = out_lt[k]
+        # start-up rule: an event without estimate inside a burst keeps the burst's lifetime
+        if ok or not (startup and cont):
+            prev_lt[si] = out_lt[j]
+        if not out_valid[j]:
+            out_lt[j] = np.nan  # a border event's lifetime was kept above only for its burst state
         prev_pol[si] = pk
+    return idx.shape[0]
 
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl):
+                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane):
     """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -465,7 +668,8 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
             n += 1
         # float times: 2-means sums them in float64 (exact=False)
         ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
-                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback)
+                               max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
+                               gap_ratio, on_plane)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

@@ -35,6 +35,7 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._buffer_kernels import _buffer_scan, _n_decided
+from ._tiles import check_n_tiles, filter_tiled
 from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
 from .protocols import METHODS
 
@@ -100,16 +101,41 @@ class EventBuffer:
         self._last_t = np.full(2 * w * h, NEVER_US, dtype=np.int64)
         self._head_g = np.full(2 * w * h, -1, dtype=np.int64)
         self._covered_g = np.full(2 * w * h, -1, dtype=np.int64)
-        self._pending = np.empty(0, dtype=EVENT_DTYPE)
+        # the unreleased events are slots [_start, _end) of growable arrays (the events
+        # and their plain columns, converted once on arrival): a chunk costs O(chunk),
+        # not O(events waiting), however long the support window keeps them
+        self._cap = 0
+        self._ev = np.empty(0, dtype=EVENT_DTYPE)
+        self._cols = [np.empty(0, dtype=np.int64) for _ in range(4)]  # x, y, t, p
         self._prev = np.empty(0, dtype=np.int64)
         self._supported = np.empty(0, dtype=bool)
-        self._base_g = 0
+        self._start = 0
+        self._end = 0
+        self._base_g = 0  # global index of slot _start
         self._last_time: int | None = None
 
     @property
     def n_pending(self) -> int:
         """Events received but not yet released or dropped."""
-        return int(self._pending.shape[0])
+        return self._end - self._start
+
+    def _make_room(self, m: int) -> None:
+        """Room for ``m`` more slots: move the pending slots to the front, grow when needed."""
+        pending = self._end - self._start
+        if self._end + m <= self._cap:
+            return
+        cap = max(self._cap, 1024)
+        while pending + m > cap // 2:  # at least half free after the move: amortised O(1) per event
+            cap *= 2
+        sl = slice(self._start, self._end)
+        arrays = [self._ev, *self._cols, self._prev, self._supported]
+        new = []
+        for arr in arrays:
+            out = np.empty(cap, dtype=arr.dtype)
+            out[:pending] = arr[sl]
+            new.append(out)
+        self._ev, self._cols, self._prev, self._supported = new[0], new[1:5], new[5], new[6]
+        self._cap, self._start, self._end = cap, 0, pending
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Take a time-sorted chunk; return the kept events whose fate is now known."""
@@ -117,18 +143,23 @@ class EventBuffer:
         check_not_before(events, self._last_time)
         if events.size == 0:
             return events[:0].copy()
-        n_old = self._pending.shape[0]
-        allev = np.concatenate([self._pending, events])
-        x, y, t, p = columns(allev)
-        prev = np.concatenate([self._prev, np.full(events.shape[0], -1, dtype=np.int64)])
-        supported = np.concatenate([self._supported, np.zeros(events.shape[0], dtype=bool)])
+        m = events.shape[0]
+        self._make_room(m)
+        a, b = self._end, self._end + m
+        self._ev[a:b] = events
+        for col, values in zip(self._cols, columns(events)):
+            col[a:b] = values
+        self._prev[a:b] = -1
+        self._supported[a:b] = False
+        self._end = b
+        sl = slice(self._start, b)
+        x, y, t, p = (col[sl] for col in self._cols)
         tau = self.params.tau_min_us
         causal = self.params.mode == "causal"
-        _buffer_scan(x, y, t, p, prev, supported, n_old, self._base_g, self._last_t, self._head_g, self._covered_g,
-                     self.sensor_size.width, self.sensor_size.height, tau, causal)
+        _buffer_scan(x, y, t, p, self._prev[sl], self._supported[sl], a - self._start, self._base_g, self._last_t,
+                     self._head_g, self._covered_g, self.sensor_size.width, self.sensor_size.height, tau, causal)
         self._last_time = int(t[-1])
-        self._pending, self._prev, self._supported = allev, prev, supported
-        return self._release(_n_decided(t, supported, self._last_time, tau, causal))
+        return self._release(_n_decided(t, self._supported[sl], self._last_time, tau, causal))
 
     def advance_to(self, t_us: int) -> np.ndarray:
         """Declare that no event earlier than ``t_us`` will come; return the kept events now decided.
@@ -142,29 +173,24 @@ class EventBuffer:
         if self._last_time is not None and t_us < self._last_time:
             raise ValueError(f"t_us={t_us} is before the newest processed event (t={self._last_time} us)")
         self._last_time = int(t_us)
-        t = np.ascontiguousarray(self._pending["t"], dtype=np.int64)
-        r = _n_decided(t, self._supported, self._last_time, self.params.tau_min_us, self.params.mode == "causal")
+        sl = slice(self._start, self._end)
+        r = _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.tau_min_us,
+                       self.params.mode == "causal")
         return self._release(r)
 
     def _release(self, r: int) -> np.ndarray:
-        out = self._pending[:r][self._supported[:r]]
-        self._pending = self._pending[r:]
-        self._prev = self._prev[r:]
-        self._supported = self._supported[r:]
+        sl = slice(self._start, self._start + r)
+        out = self._ev[sl][self._supported[sl]]
+        self._start += r
         self._base_g += r
         return out
 
     def flush(self) -> np.ndarray:
         """End of stream: release the kept events still waiting for support."""
-        out = self._pending[self._supported]
-        self._base_g += self._pending.shape[0]
-        self._pending = self._pending[:0]
-        self._prev = self._prev[:0]
-        self._supported = self._supported[:0]
-        return out
+        return self._release(self._end - self._start)
 
 
-def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None = None) -> np.ndarray:
+def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None = None, *, n_tiles: int = 1) -> np.ndarray:
     """One-shot event buffer.
 
     Parameters
@@ -174,6 +200,9 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     sensor_size : SensorSize or (width, height)
     params : BufferParams, optional
         Defaults: ``tau_min_us=10_000``, buffered form.
+    n_tiles : int
+        Row strips processed in parallel (numba threads; default 1). Any value
+        gives the same decisions (:mod:`evedge.detector._tiles`).
 
     Returns
     -------
@@ -183,9 +212,16 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     sensor_size = check_sensor_size(sensor_size)
     params = _check_params(params)
     events = check_events(events, sensor_size)
+    return _filter(events, sensor_size, params, check_n_tiles(n_tiles, sensor_size.height))
+
+
+def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int) -> np.ndarray:
+    """:func:`filter_events` on validated events and parameters."""
     w, h = sensor_size.width, sensor_size.height
     x, y, t, p = columns(events)
     n = events.shape[0]
+    if n_tiles > 1:
+        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles)
     supported = np.zeros(n, dtype=bool)
     _buffer_scan(x, y, t, p, np.full(n, -1, dtype=np.int64), supported, 0, 0,
                  np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
@@ -193,15 +229,18 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     return supported
 
 
-def _registered(sensor_size, **params) -> EventBuffer:
-    """Factory of the method registry: ``EventBuffer(sensor_size, BufferParams(**params))``."""
+def _registered(sensor_size, n_tiles: int = 1, **params) -> EventBuffer:
+    """Factory of the method registry: ``EventBuffer(sensor_size, BufferParams(**params))``.
+
+    ``n_tiles`` is for the one-shot keep mask (strips); the streaming buffer is serial.
+    """
     return EventBuffer(sensor_size, BufferParams(**params))
 
 
-def _keep_mask(events: np.ndarray, sensor_size, **params) -> np.ndarray:
+def _keep_mask(events: np.ndarray, sensor_size, n_tiles: int = 1, **params) -> np.ndarray:
     """One-shot keep mask of the registry entry: :func:`filter_events`."""
-    return filter_events(events, sensor_size, BufferParams(**params))
+    return filter_events(events, sensor_size, BufferParams(**params), n_tiles=n_tiles)
 
 
 METHODS.register("buffer", _registered, kind="filter", display_name="event buffer (noise filter)", colour="#8c564b",
-                 params=BufferParams, keep_mask=_keep_mask)
+                 params=BufferParams, keep_mask=_keep_mask, extra_params=("n_tiles",))

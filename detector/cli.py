@@ -139,26 +139,60 @@ def _method_help() -> str:
             + "; or package.module:factory of a third-party method.")
 
 
-def _estimate(method, events, sensor, filter_name, filter_params, params, quiet):
-    """Per-event lifetimes (LIFETIME_DTYPE) and the filter's keep mask; chunked with a progress bar."""
+def _estimate(method, events, sensor, filter_name, filter_params, params, frame_t, display, quiet):
+    """The per-event table (LIFETIME_COLUMNS: estimates, NaN where none, and the filter's
+    keep mask) and the edge frames at ``frame_t``, in one pass over chunks of the events.
+
+    Each chunk's kept events go through the estimator and then the edge image
+    (frames taken at the instants inside the chunk, as :func:`edge_frames` takes
+    them); their estimates are written into the table in place. No copy of the
+    kept events or of their estimates is made: the peak memory is that of the
+    filter's keep mask, ~55 bytes per event (``benchmarks/bench_cli.py``).
+    """
     from tqdm import tqdm
 
+    from evedge.io.detection import LIFETIME_COLUMNS
+
+    from .edges import EdgeImage
     from .pipeline import _check_estimate, keep_mask, make_method
-    from .result import empty_lifetimes
 
     kept = keep_mask(filter_name, events, sensor, filter_params) if filter_name else np.ones(events.size, bool)
-    sub = events[kept]
     est = make_method(method, sensor, params, kind="estimator")
-    parts = []
-    with tqdm(total=sub.size, unit="ev", desc="lifetimes", disable=quiet) as bar:
-        for start in range(0, sub.size, _CHUNK):
-            chunk = sub[start : start + _CHUNK]
-            parts.append(_check_estimate(method, est.process(chunk), chunk.size))
-            bar.update(chunk.size)
-    out = empty_lifetimes(events.size)
-    if parts:
-        out[kept] = np.concatenate(parts)
-    return out, kept
+    table = np.empty(events.size, dtype=list(LIFETIME_COLUMNS))
+    table["kept"] = kept
+    image = EdgeImage(sensor, display=display)
+    order = np.argsort(frame_t, kind="stable")
+    ends = np.searchsorted(events["t"], frame_t[order], side="right")  # frame i counts events[:ends[i]]
+    frames = np.zeros((frame_t.size, sensor.height, sensor.width), dtype=bool)
+    f = 0
+    with tqdm(total=events.size, unit="ev", desc="lifetimes", disable=quiet) as bar:
+        for start in range(0, events.size, _CHUNK):
+            stop = min(start + _CHUNK, events.size)
+            rows = table[start:stop]
+            keep = kept[start:stop]
+            chunk = events[start:stop][keep]
+            lt = _check_estimate(method, est.process(chunk), chunk.size)
+            for name in lt.dtype.names:
+                col = rows[name]
+                col[...] = False if name == "valid" else np.nan
+                col[keep] = lt[name]
+            # the edge image, frame by frame inside the chunk
+            pos = np.cumsum(keep)  # kept events among the chunk's first j + 1
+            done = 0
+            while f < frame_t.size and ends[f] <= stop:
+                upto = int(pos[ends[f] - start - 1]) if ends[f] > start else 0
+                if upto > done:
+                    image.process(chunk[done:upto], lt[done:upto])
+                    done = upto
+                frames[order[f]] = image.image_at(int(frame_t[order[f]]))
+                f += 1
+            if done < chunk.size:
+                image.process(chunk[done:], lt[done:])
+            bar.update(stop - start)
+    while f < frame_t.size:  # instants after the last event
+        frames[order[f]] = image.image_at(int(frame_t[order[f]]))
+        f += 1
+    return table, kept, frames
 
 
 def _versions() -> dict:
@@ -209,7 +243,10 @@ class _DetectCommand(click.Command):
 
 
 def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> None:
-    """The edge frames of ``det`` as a video, coloured by lifetime/polarity of the events behind them."""
+    """The edge frames of ``det`` as a video, coloured by lifetime/polarity of the events behind them.
+
+    ``lifetimes``: the per-event table (a ``lifetime_us`` column aligned with the events) or None.
+    """
     from evedge.video import edge_video_frames, write_video
 
     colour = colour or ("lifetime" if lifetimes is not None else "mono")
@@ -255,7 +292,8 @@ def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> N
 @click.option("--display", type=click.Choice(["predecessor", "lifetime_only"]), default=None,
               help="How lifetimes become edge frames. Default predecessor (clear the pixel behind each event, "
                    "Mueggler's display), the same as the primary display of the report of evedge bench; "
-                   "lifetime_only: a pixel is edge while its newest event lives, nothing cleared.")
+                   "lifetime_only: a pixel is edge while its newest event lives (a burst from its first event), "
+                   "nothing cleared.")
 @click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
               help="Seed of the method (same as --param seed=N).")
 @click.option("--embed-events/--no-embed-events", default=True, show_default=True,
@@ -264,10 +302,15 @@ def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> N
               help="Also write the edge frames as a video (.mp4 or .gif), over the grey frames when there are any.")
 @click.option("--video-colour", type=click.Choice(["lifetime", "polarity", "mono"]), default=None,
               help="Edge colour in --video: by lifetime (default for lifetime methods), polarity, or mono.")
+@click.option("--png/--no-png", "write_png", default=True, show_default=True,
+              help="Also write each edge frame as OUT/edges/*.png (the frames are in detection.h5 either way).")
+@click.option("--compress/--no-compress", "compress", default=False, show_default=True,
+              help="gzip the per-event columns of detection.h5 (~2x smaller, ~0.9 us per event; edge frames "
+                   "are always compressed).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing OUT (a previous detect output).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def detect(events_file, out, method, param_items, config, fps, times, at_frames, window_ms, n_events, sensor, sort, use_buffer,
-           display, seed, embed_events, video, video_colour, overwrite, quiet):
+           display, seed, embed_events, video, video_colour, write_png, compress, overwrite, quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads) with any registered method.
 
     Writes OUT/detection.h5, a self-describing file (format evedge-detection:
@@ -284,7 +327,7 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     from evedge.io.detection import Detection, file_sha256, write_detection
     from evedge.events import Frames
 
-    from .edges import PRIMARY_DISPLAY, edge_frames
+    from .edges import PRIMARY_DISPLAY
     from .pipeline import _default_filter, edge_frames_of, resolved_params
     from .protocols import METHODS
 
@@ -344,10 +387,10 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
         span = int(events["t"][-1]) - int(events["t"][0])
         click.echo(f"Warning: no edge frame: the events span {span} us, less than one frame period "
                    f"({1e6 / fps:.0f} us at --fps {fps:g}); pass --times or a higher --fps", err=True)
-    lifetimes = kept = None
+    table = kept = None
     if entry.kind == "estimator":
-        lifetimes, kept = _estimate(method, events, size, filter_name, filter_all, params, quiet)
-        frames = edge_frames(events[kept], lifetimes[kept], size, frame_t, display=display)
+        table, kept, frames = _estimate(method, events, size, filter_name, filter_all, params, frame_t, display,
+                                        quiet)
     else:
         frames = edge_frames_of(method, events, size, frame_t, params)
     source = Path(events_file).resolve()
@@ -359,21 +402,14 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
                        "format": rec.metadata.get("format"), "sorted_on_load": bool(rec.metadata.get("sorted_on_load", False))},
             "events_embedded": bool(embed_events), "frame_times": "--at-frames" if at_frames else "--times" if times is not None else f"--fps {fps:g}",
             "versions": _versions(), "command": "evedge detect"}
-    table = None
-    if lifetimes is not None:
-        from evedge.io.detection import LIFETIME_COLUMNS
-
-        table = np.empty(events.size, dtype=list(LIFETIME_COLUMNS))
-        for name in lifetimes.dtype.names:
-            table[name] = lifetimes[name]
-        table["kept"] = kept
     det = Detection(size, events if embed_events else None, table, Frames(frame_t, np.asarray(frames, bool)), meta)
     from evedge._output import staged_folder
 
     try:
         with staged_folder(out, allowed=_OUTPUT_NAMES) as stage:
-            write_detection(stage / "detection.h5", det)
-            _write_pngs(stage / "edges", frame_t, frames, quiet)
+            write_detection(stage / "detection.h5", det, compress_per_event=compress)
+            if write_png:
+                _write_pngs(stage / "edges", frame_t, frames, quiet)
     except OutputExistsError as err:
         raise click.ClickException(str(err)) from None
     except OSError as err:
@@ -382,10 +418,10 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
         click.echo(f"replaced the earlier output in {out}", err=True)
     try:
         if video is not None:
-            _write_video(video, rec, det, lifetimes, kept, video_colour, fps, quiet)
+            _write_video(video, rec, det, table, kept, video_colour, fps, quiet)
     except OSError as err:
         raise click.ClickException(f"cannot write the video {video}: {err}") from None
     msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"
-    if lifetimes is not None:
-        msg += f"; {int(kept.sum())} passed to the estimator, {int(lifetimes['valid'].sum())} with a lifetime"
+    if table is not None:
+        msg += f"; {int(kept.sum())} passed to the estimator, {int(table['valid'].sum())} with a lifetime"
     click.echo(msg)

@@ -12,6 +12,18 @@ instead (the pixel's newest event is then one with no edge evidence).
 the life of the 8-neighbour behind it, opposite its normal flow rounded to 45
 degrees, which thins edges left behind by fast motion.
 
+``burst_lifetimes > 0`` (our addition, burst-aware display): an edge crossing a
+pixel fires a *burst* of events (one per threshold its contrast spans), and with
+expiry counted from each event's own time the pixel stays alive for the
+lifetime after the burst's *last* event, so a moving edge leaves a trail about
+two pixels thick. With it, a valid event continues its pixel's burst when the
+pixel's newest valid event has the same polarity and fired at most
+``burst_lifetimes`` times its lifetime before (the estimator's rule,
+:class:`~evedge.detector.intra.IntraParams` ``burst_lifetimes``), and the pixel
+expires one lifetime after the burst's *first* event. 0 is the paper's
+display: the default, except under the ``lifetime_only`` display policy
+(:data:`DISPLAY_BURST_LIFETIMES`), whose edge maps are burst-aware.
+
 References
 ----------
 .. [1] S. Lee, H. Kim, H. J. Kim, BMVC 2019, section 2.3.
@@ -23,10 +35,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import NEVER_US, check_events, check_lifetimes, check_not_before, check_sensor_size, columns
+from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
+                      columns)
 from ._edges_kernels import _DX, _DY, _edge_update
 
-__all__ = ["DISPLAYS", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind", "edge_frames"]
+__all__ = ["DISPLAYS", "DISPLAY_BURST_LIFETIMES", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind",
+           "edge_frames"]
 
 _INVALID = ("ignore", "clear")
 
@@ -34,6 +48,13 @@ _INVALID = ("ignore", "clear")
 #: image, never part of a method's name) -> ``clear_behind``. ``predecessor``: Mueggler et
 #: al.'s display, each event also clears the pixel behind it; ``lifetime_only``: nothing cleared.
 DISPLAYS = {"predecessor": True, "lifetime_only": False}
+
+#: ``burst_lifetimes`` of each display policy when :class:`EdgeImage` is given ``display`` and no
+#: ``burst_lifetimes`` (issue 11): the lifetime-only policy counts expiry from the burst's first
+#: event (without it a burst's trail is about twice as thick as the edge: lifetime-only CDM on
+#: stripes at 200 px/s 63 -> 88, ``benchmarks/display_cdm.py``); the predecessor's display keeps
+#: Mueggler et al.'s rule (each event alive from its own time; its clearing already thins the trail).
+DISPLAY_BURST_LIFETIMES = {"predecessor": 0.0, "lifetime_only": 1.0}
 
 #: The display of ``evedge detect`` by default and of the report's primary comparison: the
 #: authors' code is a fork of Mueggler et al.'s and inherits its display.
@@ -57,8 +78,12 @@ class EdgeImage:
         Clear the neighbour behind each valid event (Mueggler's display).
     invalid : {"ignore", "clear"}
         What an event without estimate does to its pixel.
+    burst_lifetimes : float, optional
+        >= 0; expiry counted from the burst's first event (module notes); 0 = from each event.
+        Default: the display policy's (:data:`DISPLAY_BURST_LIFETIMES`), else 0.
     display : {"predecessor", "lifetime_only"}, optional
-        A display policy of :data:`DISPLAYS`; sets ``clear_behind`` (then leave it unset).
+        A display policy of :data:`DISPLAYS`; sets ``clear_behind`` (then leave it unset) and,
+        unless given, ``burst_lifetimes``.
 
     Notes
     -----
@@ -66,11 +91,15 @@ class EdgeImage:
     so an edge map is available between any two events.
     """
 
-    def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore", *,
-                 display: str | None = None) -> None:
+    def __init__(self, sensor_size, clear_behind: bool = False, invalid: str = "ignore",
+                 burst_lifetimes: float | None = None, *, display: str | None = None) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
         if display is not None:
             clear_behind = display_clear_behind(display)
+        if burst_lifetimes is None:
+            burst_lifetimes = DISPLAY_BURST_LIFETIMES[display] if display is not None else 0.0
+        check_positive("EdgeImage", "burst_lifetimes", burst_lifetimes, allow_zero=True)
+        self.burst_lifetimes = float(burst_lifetimes)
         if not isinstance(clear_behind, (bool, np.bool_)):
             raise TypeError(f"clear_behind must be a bool, got {clear_behind!r}")
         if invalid not in _INVALID:
@@ -84,6 +113,9 @@ class EdgeImage:
         n = self.sensor_size.width * self.sensor_size.height
         self._last_t = np.full(n, NEVER_US, dtype=np.int64)
         self._expiry = np.full(n, -np.inf)
+        self._start_t = np.full(n, NEVER_US, dtype=np.int64)
+        self._prev_lt = np.full(n, np.nan)
+        self._prev_pol = np.full(n, -1, dtype=np.int8)
         self._last_time: int | None = None
 
     @property
@@ -98,12 +130,13 @@ class EdgeImage:
         check_not_before(events, self._last_time)
         if events.size == 0:
             return
-        x, y, t, _ = columns(events)
+        x, y, t, p = columns(events)
         _edge_update(x, y, t, np.ascontiguousarray(lifetimes["lifetime_us"]),
                      np.ascontiguousarray(lifetimes["vx_px_s"]), np.ascontiguousarray(lifetimes["vy_px_s"]),
                      np.ascontiguousarray(lifetimes["valid"]), self._last_t, self._expiry,
                      self.sensor_size.width, self.sensor_size.height, self.clear_behind,
-                     self.invalid == "clear", _DX, _DY)
+                     self.invalid == "clear", _DX, _DY, p, self.burst_lifetimes, self._start_t, self._prev_lt,
+                     self._prev_pol)
         self._last_time = int(t[-1])
 
     def image_at(self, t_us) -> np.ndarray:
@@ -122,7 +155,8 @@ class EdgeImage:
 
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
-                invalid: str = "ignore", *, display: str | None = None) -> np.ndarray:
+                invalid: str = "ignore", burst_lifetimes: float | None = None, *,
+                display: str | None = None) -> np.ndarray:
     """Edge maps at the given instants (one-shot form of :class:`EdgeImage`).
 
     Parameters
@@ -134,7 +168,7 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     sensor_size : SensorSize or (width, height)
     times_us : array_like of int
         Instants in us, any order; events with ``t <= T`` count for instant ``T``.
-    clear_behind, invalid, display
+    clear_behind, invalid, burst_lifetimes, display
         As in :class:`EdgeImage`.
 
     Returns
@@ -151,7 +185,8 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     if times.size and not np.all(np.isfinite(times)):
         raise ValueError("times_us: non-finite instant")
     out = np.zeros((times.size, *sensor_size.shape), dtype=bool)
-    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
+    image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst_lifetimes,
+                      display=display)
     order = np.argsort(times, kind="stable")
     ends = np.searchsorted(events["t"], times[order], side="right")
     start = 0

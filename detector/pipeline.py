@@ -18,6 +18,7 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_sensor_size
+from ._tiles import check_n_tiles
 from .edges import EdgeImage
 from .protocols import METHODS
 from .result import LIFETIME_DTYPE, empty_lifetimes
@@ -202,8 +203,15 @@ def _check_estimate(name: str, out, n: int) -> np.ndarray:
     return out
 
 
+def _with_tiles(name: str, params, n_tiles: int):
+    """``params`` with ``n_tiles`` added for a method that runs in strips (others run serially, same result)."""
+    if n_tiles == 1 or "n_tiles" not in METHODS.get(name).metadata.get("extra_params", ()):
+        return params
+    return {**method_params(name, params), "n_tiles": n_tiles}
+
+
 def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_params=None, params=None,
-           use_buffer: bool | None = None, filter: str | None = None) -> DetectionResult:
+           use_buffer: bool | None = None, filter: str | None = None, n_tiles: int = 1) -> DetectionResult:
     """Run a noise filter and a lifetime estimator on a whole event array.
 
     Parameters
@@ -223,6 +231,10 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
         the event buffer, as the paper; ``mueggler``: none, as its original).
     filter : str, optional
         A registered noise filter (default ``"buffer"``).
+    n_tiles : int
+        Row strips run in parallel by the stages that can (the event buffer's
+        keep mask and ``intra``; :mod:`evedge.detector._tiles`); default 1. Any
+        value gives the same bytes.
 
     Returns
     -------
@@ -239,10 +251,12 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     ((8,), dtype('bool'))
     """
     sensor_size = check_sensor_size(sensor_size)
+    n_tiles = check_n_tiles(n_tiles, sensor_size.height)
     flt = _default_filter(method, use_buffer, filter)
-    estimator = make_method(method, sensor_size, params, kind="estimator")
+    estimator = make_method(method, sensor_size, _with_tiles(method, params, n_tiles), kind="estimator")
     events = check_events(events, sensor_size)
-    kept = keep_mask(flt, events, sensor_size, buffer_params) if flt else np.ones(events.shape[0], bool)
+    kept = (keep_mask(flt, events, sensor_size, _with_tiles(flt, buffer_params, n_tiles)) if flt
+            else np.ones(events.shape[0], bool))
     sub = events[kept] if flt else events
     est = _check_estimate(method, estimator.process(sub), sub.shape[0])
     lifetimes = empty_lifetimes(events.shape[0])

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from .sensors import SENSOR_MODELS
+
 #: The event dtype, identical to ``tonic.io.events_struct``.
 EVENT_DTYPE = np.dtype([("x", np.int16), ("y", np.int16), ("t", np.int64), ("p", bool)])
 
@@ -50,7 +52,7 @@ class SensorSize:
 
     @classmethod
     def parse(cls, text: str) -> "SensorSize":
-        """Parse ``"240x180"`` or a preset name (``dvs128``, ``davis240``, ``davis346``)."""
+        """Parse ``"240x180"`` or a preset name (``dvs128``, ``davis346``, ``gen4``, ... see :mod:`evedge.sensors`)."""
         key = text.strip().lower()
         if key in SENSOR_PRESETS:
             return SENSOR_PRESETS[key]
@@ -63,11 +65,8 @@ class SensorSize:
         return cls(int(parts[0]), int(parts[1]))
 
 
-SENSOR_PRESETS = {
-    "dvs128": SensorSize(128, 128),
-    "davis240": SensorSize(240, 180),
-    "davis346": SensorSize(346, 260),
-}
+#: Sensor sizes by preset name (the presets themselves: :data:`evedge.sensors.SENSOR_MODELS`).
+SENSOR_PRESETS = {name: SensorSize(m.width, m.height) for name, m in SENSOR_MODELS.items()}
 
 
 def make_events(x, y, t, p) -> np.ndarray:

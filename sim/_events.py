@@ -262,3 +262,27 @@ def _noise(t1, rate_hz, time_seed, pol_seed, next_t, count, fill, out_pix, out_t
 def _noise_first_arrivals(rate_hz, time_seed, out):
     for i in range(out.shape[0]):
         out[i] = -math.log(_hash_uniform(time_seed, i, 0)) / rate_hz
+
+
+@njit(cache=True)
+def _scan_frame(i0, i1, eps, e_hi, e_lo, cand):
+    """:func:`_scan` over a whole frame that also counts non-finite values of ``i1``.
+
+    Frames input is checked here, in the pass that reads every pixel anyway,
+    instead of by a separate reduction per frame. Returns ``(n_cand, n_bad)``.
+    """
+    m = 0
+    bad = 0
+    for i in range(i1.shape[0]):
+        v = i1[i]
+        if v == i0[i]:
+            continue
+        if not math.isfinite(v):
+            bad += 1
+            continue
+        a = v + eps
+        if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
+            continue
+        cand[m] = i
+        m += 1
+    return m, bad

@@ -25,11 +25,35 @@ Adaptive sampling, two modes (``sampling``):
   ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
   differences of the current sample, capped as above by ``1 / min_rate_hz``
   and ``max_step_px / v_max``.
+- ``"geometric"`` (exact crossing times only; what ``"auto"`` picks for a
+  renderer whose pixels are monotone in time over a step of ``max_step_px``,
+  ``monotone_step_px``, as the stripes are): steps of
+  ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (the times do
+  not need it), halved while the step's midpoint shows an excursion that
+  hides a crossing (a pixel beyond a level that neither end reaches); an
+  excursion shorter than half a step can still be missed (measured on
+  ``shapes_translation``: 0.05 % of the events, at star tips; none on
+  ``stripes``).
+- Renderers with fixed sample times (``next_sample_s``: frames input) are
+  sampled exactly there.
+
+Crossing times (``crossing_times``): ``"exact"`` (the default where the
+renderer offers ``pixel_intensity``, the analytic planar scenes) solves each
+crossing for its instant on the closed-form pixel intensity (see
+:meth:`EventConverter._refine`); ``"linear"`` interpolates ``L`` linearly
+between the samples (ESIM). Either way the event's ``t`` is whole
+microseconds and the truth's ``t_ns`` the same instant in nanoseconds.
+
+Sensor effects (all off by default; v2e's pixel model [2]_): photoreceptor
+low-pass, leak events, shot noise, noise that resets the pixel; see
+:class:`ConverterParams` and :mod:`evedge.sim._sensor`.
 
 References
 ----------
 .. [1] H. Rebecq, D. Gehrig, D. Scaramuzza, "ESIM: an Open Event Camera
        Simulator", CoRL 2018.
+.. [2] Y. Hu, S.-C. Liu, T. Delbruck, "v2e: From video frames to realistic
+       DVS events", CVPR Workshops 2021.
 """
 
 from __future__ import annotations
@@ -40,13 +64,41 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan
+from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan, _scan_frame
+from ._exact import _crossing_levels, _hidden_crossing, _root_start, _root_step, _refractory_jitter
+from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
 #: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
 _NOISE_BLOCK_S = 0.01
+#: Realistic sensor-effect settings (``ConverterParams(**SENSOR_EFFECT_PRESETS[name])``; scenes:
+#: ``[events] effects = name``). ``v2e_noisy``: v2e's ``--dvs_params noisy`` (thresholds 0.2, mismatch
+#: 0.05, photoreceptor cutoff 30 Hz, leak 0.1 Hz with v2e's default 10 % spread, shot noise 5 Hz) with
+#: noise that resets the pixel; ``v2e_clean``: its ``clean`` (thresholds 0.2, mismatch 0.02, no effects).
+SENSOR_EFFECT_PRESETS = {
+    "v2e_noisy": dict(contrast_pos=0.2, contrast_neg=0.2, contrast_sigma=0.05, lowpass_cutoff_hz=30.0,
+                      leak_rate_hz=0.1, leak_rate_sigma=0.1, shot_noise_rate_hz=5.0, noise_resets=True),
+    "v2e_clean": dict(contrast_pos=0.2, contrast_neg=0.2, contrast_sigma=0.02),
+}
+#: Values of ``ConverterParams.sampling``.
+SAMPLING = ("auto", "verified", "predicted", "geometric")
+#: Values of ``ConverterParams.crossing_times``.
+CROSSING_TIMES = ("auto", "exact", "linear")
+#: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
+EXACT_TOL_S = 1e-10
+#: ... or when the secant through the last two evaluations puts the root this close (s) after the point
+#: (the secant root is then taken: its error is second order, far below a nanosecond).
+EXACT_TOL_T = 1e-9
+#: ... or when the intensity is this close to the (shifted) level's (a time error <= 1e-13 / |dI/dt| s).
+EXACT_TOL_I = 1e-13
+#: The level's intensity is moved this far towards the start value, so that the root is the first
+#: instant the level is reached (a time bias of 1e-11 / |dI/dt| s; where the intensity only touches
+#: the level, as on returning to a plateau, sqrt(1e-11 / a) for I = a (t - t*)^2, tens of ns).
+EXACT_SHIFT_I = 1e-11
+#: ... or after this many steps (a safeguard; about 4 are needed on average, a few dozen at worst).
+_EXACT_MAX_STEPS = 100
 
 
 @dataclass(frozen=True)
@@ -85,6 +137,36 @@ class ConverterParams:
         ``"auto"`` (verified unless the renderer has an attribute
         ``continuous_in_time`` set to False), ``"verified"`` or
         ``"predicted"`` (see the module docstring).
+    crossing_times : str
+        ``"auto"`` (exact when the renderer offers ``pixel_intensity`` and
+        geometric truth, as the analytic planar renderers do, and no sensor
+        effect below is on; linear otherwise), ``"exact"`` (solve the pixel's
+        closed-form intensity for each crossing instant, see the module
+        docstring) or ``"linear"`` (ESIM's interpolation of ``L`` between the
+        samples).
+    lowpass_cutoff_hz : float
+        Photoreceptor bandwidth at full intensity (0: off). The events fire
+        on ``L_lp``, ``tau(I) dL_lp/dt = L - L_lp`` with the v2e
+        intensity-dependent cutoff ``f(I) = cutoff (I + 20/255) / (1 + 20/255)``,
+        ``tau = 1 / (2 pi f)`` (see :mod:`evedge.sim._sensor`); steps are then
+        at most ``0.1 / (2 pi cutoff)`` (scenes; frames are sampled as given).
+    leak_rate_hz : float
+        Leak events (0: off): the reference level of pixel ``i`` drifts down
+        by ``r_i C+_i`` per second (junction leakage, v2e), so a static
+        pixel fires ON events at rate ``r_i``.
+    leak_rate_sigma : float
+        Relative per-pixel spread of the leak rate: ``r_i = r max(0, 1 + sigma N(0, 1))``
+        drawn once per pixel from the seed (v2e's ``leak_jitter_fraction``).
+    shot_noise_rate_hz : float
+        Shot noise (0: off): Poisson events, ON or OFF with equal chance, at
+        ``R(I) = rate (1 - 0.75 I)`` per pixel (v2e: the dark rate, four times
+        less at full intensity); noise in the truth. They reset the pixel and
+        obey the refractory period (as v2e's shot noise moves the reference).
+    noise_resets : bool
+        Background-activity and shot-noise events reset the pixel (its
+        reference level becomes the present ``L``) and obey the refractory
+        period (arrivals inside it are dropped) instead of being independent
+        of the pixel (the default, today's bytes).
     """
 
     contrast_pos: float = 0.2
@@ -100,13 +182,24 @@ class ConverterParams:
     max_step_px: float = 0.5
     min_step_s: float = 1e-6
     sampling: str = "auto"
+    crossing_times: str = "auto"
+    lowpass_cutoff_hz: float = 0.0
+    leak_rate_hz: float = 0.0
+    leak_rate_sigma: float = 0.0
+    shot_noise_rate_hz: float = 0.0
+    noise_resets: bool = False
 
     def __post_init__(self) -> None:
-        if self.sampling not in ("auto", "verified", "predicted"):
-            raise ValueError("ConverterParams.sampling must be 'auto', 'verified' or 'predicted', "
-                             f"got {self.sampling!r}")
+        if self.sampling not in SAMPLING:
+            raise ValueError(f"ConverterParams.sampling must be one of {list(SAMPLING)}, got {self.sampling!r}")
+        if self.crossing_times not in CROSSING_TIMES:
+            raise ValueError(f"ConverterParams.crossing_times must be one of {list(CROSSING_TIMES)}, "
+                             f"got {self.crossing_times!r}")
+        if not isinstance(self.noise_resets, (bool, np.bool_)):
+            raise ValueError(f"ConverterParams.noise_resets must be True or False, got {self.noise_resets!r}")
+        object.__setattr__(self, "noise_resets", bool(self.noise_resets))
         for name, value in asdict(self).items():
-            if name == "sampling":
+            if name in ("sampling", "crossing_times", "noise_resets"):
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ConverterParams.{name} must be a finite number, got {value!r}")
@@ -119,7 +212,8 @@ class ConverterParams:
         if self.min_step_s < 1e-9:
             # a smaller step vanishes against t (t + step == t): the simulation would never progress
             raise ValueError(f"ConverterParams.min_step_s must be >= 1e-9, got {self.min_step_s}")
-        for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us"):
+        for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us", "lowpass_cutoff_hz",
+                     "leak_rate_hz", "leak_rate_sigma", "shot_noise_rate_hz"):
             if getattr(self, name) < 0:
                 raise ValueError(f"ConverterParams.{name} must be >= 0, got {getattr(self, name)}")
         # upper bounds: beyond them the output is meaningless or the simulation never ends
@@ -127,17 +221,28 @@ class ConverterParams:
             ("lambda_", 1.0, "a step may not cross more than one threshold"),
             ("noise_rate_hz", 1e6, "timestamps are whole microseconds"),
             ("min_rate_hz", 1e6, "a step need not be shorter than a microsecond"),
+            ("shot_noise_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("leak_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("lowpass_cutoff_hz", 1e9, "steps of a fraction of a nanosecond"),
             ("jitter_us", 1e12, "jittered times must stay inside int64 microseconds"),
         ):
             if getattr(self, name) > hi:
                 raise ValueError(f"ConverterParams.{name} must be <= {hi:g} ({why}), got {getattr(self, name)}")
 
 
+def _ns(t_s: np.ndarray) -> np.ndarray:
+    """Emitted times in int64 nanoseconds (the truth's ``t_ns``; ``t`` of the events is the same time in us)."""
+    return np.rint(t_s * 1e9).astype(np.int64)
+
+
 def _seeds(seed: int):
     ss = np.random.SeedSequence(seed)
     thr, jit, ntime, npol = ss.spawn(4)
+    # spawned after the first four, so these do not change the others' streams
+    leak, stime, spol, sthin = ss.spawn(4)
     as_u64 = lambda s: np.uint64(s.generate_state(1, dtype=np.uint64)[0])  # noqa: E731
-    return np.random.default_rng(thr), as_u64(jit), as_u64(ntime), as_u64(npol)
+    return (np.random.default_rng(thr), as_u64(jit), as_u64(ntime), as_u64(npol),
+            (np.random.default_rng(leak), as_u64(stime), as_u64(spol), as_u64(sthin)))
 
 
 class EventConverter:
@@ -184,17 +289,43 @@ class EventConverter:
         self._geometric = isinstance(renderer, GeometricTruth)
         self._flow_at = callable(getattr(renderer, "flow_at", None))
         mode = params.sampling
+        # renderers with fixed sample times (frames input): sample exactly there, nothing to verify
+        self._fixed = callable(getattr(renderer, "next_sample_s", None))
+        self._source_name = str(getattr(renderer, "name", type(renderer).__name__))
+        self._has_flow = bool(getattr(renderer, "has_flow", True))
         if mode == "auto":
             self.verified = bool(getattr(renderer, "continuous_in_time", True))
         else:
             self.verified = mode == "verified"
+        can_exact = self._geometric and callable(getattr(renderer, "pixel_intensity", None))
+        if params.crossing_times == "exact" and not can_exact:
+            raise ValueError(f"ConverterParams.crossing_times='exact' needs a renderer with pixel_intensity and "
+                             f"point_truth; {type(renderer).__name__} has not both (use 'linear' or 'auto')")
+        self.sensor_effects = (params.lowpass_cutoff_hz > 0 or params.leak_rate_hz > 0
+                               or params.shot_noise_rate_hz > 0 or params.noise_resets)
+        if params.crossing_times == "exact" and self.sensor_effects:
+            raise ValueError("ConverterParams.crossing_times='exact' is not available with the sensor effects "
+                             "(lowpass_cutoff_hz, leak_rate_hz, shot_noise_rate_hz, noise_resets): they act on "
+                             "the sampled log intensity; use 'linear' or 'auto'")
+        self.exact = can_exact and params.crossing_times != "linear" and not self.sensor_effects
+        if mode == "geometric" and not self.exact:
+            raise ValueError("ConverterParams.sampling='geometric' needs exact crossing times (a renderer with "
+                             "pixel_intensity and point_truth, no sensor effects)")
+        # exact crossing times do not need the lambda rule: only the geometric bound on the step
+        # "auto": geometric too where the renderer guarantees monotone pixels over a max_step_px step
+        # (then no crossing can hide inside a step and the lambda rule buys nothing)
+        self.geometric_steps = mode == "geometric" or (
+            mode == "auto" and self.exact and params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0)))
+        if self.geometric_steps:
+            self.verified = False
         self.reset()
 
     def reset(self) -> None:
         """Back to ``t = 0`` with fresh state (same seed: same output)."""
         p = self.params
         npix = self.width * self.height
-        rng, self._jitter_seed, self._noise_time_seed, self._noise_pol_seed = _seeds(self.seed)
+        rng, self._jitter_seed, self._noise_time_seed, self._noise_pol_seed, extra = _seeds(self.seed)
+        leak_rng, self._shot_time_seed, self._shot_pol_seed, self._shot_thin_seed = extra
         cp = np.full(npix, p.contrast_pos)
         cn = np.full(npix, p.contrast_neg)
         if p.contrast_sigma > 0:
@@ -219,6 +350,9 @@ class EventConverter:
         else:
             self._i = self._render(0.0)
         self._flow = None
+        if self._fixed and not np.all(np.isfinite(self._i)):
+            raise ValueError(f"{self._source_name}: the first sample has "
+                             f"{int(np.count_nonzero(~np.isfinite(self._i)))} non-finite pixel values")
         self.lref = np.log(self._i + p.log_eps)
         self.e_hi = np.exp(self.lref + self.cpos)
         self.e_lo = np.exp(self.lref - self.cneg)
@@ -232,9 +366,12 @@ class EventConverter:
         if p.noise_rate_hz > 0:
             _noise_first_arrivals(p.noise_rate_hz, self._noise_time_seed, self.noise_next)
         self._dt = min(1.0 / p.min_rate_hz, 1e-4)
+        self._reset_sensor(leak_rng)
         self._pending: list[dict[str, np.ndarray]] = []
+        self._raw: list[tuple] = []  # exact mode: crossings awaiting their exact times
         self.n_samples = 0
         self.n_rejected = 0
+        self.n_root_steps = 0
         self.done = False
 
     # ------------------------------------------------------------------ sampling
@@ -278,6 +415,22 @@ class EventConverter:
             self._spans = np.empty(2 * self.height * nb, dtype=np.int64)
         return self._bufs[k], self._spans, _box_spans(boxes, nb, self.width, self.height, self._spans)
 
+    def _hides_crossing(self, tm: float) -> bool:
+        """Geometric sampling: does the sample at ``tm`` (inside the step just drawn) show a hidden crossing?"""
+        if len(self._bufs) < 3:
+            self._bufs.append(np.empty(self.width * self.height))
+            self._boxes.append(None)
+            self._spans3 = np.empty(0, dtype=np.int64)
+        mid = self._draw_into(2, tm)
+        boxes = np.concatenate([self._boxes[self._cur], self._boxes[1 - self._cur], mid])
+        nb = boxes.shape[0] // 4
+        if self._spans3.shape[0] < 2 * self.height * nb:
+            self._spans3 = np.empty(2 * self.height * nb, dtype=np.int64)
+        n = _box_spans(boxes, nb, self.width, self.height, self._spans3)
+        p = self.params
+        return bool(_hidden_crossing(self._i, self._bufs[2], self._bufs[1 - self._cur], p.log_eps, self.lref,
+                                     self.cpos, self.cneg, self._spans3, n))
+
     def _accept(self, i1: np.ndarray) -> None:
         if self._into:
             self._cur = 1 - self._cur
@@ -291,10 +444,43 @@ class EventConverter:
         vmax = float(self.renderer.max_speed_px_s(self.t, min(self.duration_s, self.t + 1.0 / p.min_rate_hz)))
         if vmax > 0:
             dt = min(dt, p.max_step_px / vmax)
+        if p.lowpass_cutoff_hz > 0:
+            dt = min(dt, 0.1 / (2.0 * math.pi * p.lowpass_cutoff_hz))  # a tenth of the shortest time constant
         return max(dt, p.min_step_s)
 
     def _step(self) -> None:
         p = self.params
+        if self._fixed:
+            t1 = min(float(self.renderer.next_sample_s(self.t)), self.duration_s)
+            if not t1 > self.t:
+                raise ValueError(f"renderer {type(self.renderer).__name__}.next_sample_s({self.t}) returned {t1}, "
+                                 "not a later time")
+            i1 = self._render(t1)
+            n_cand, n_bad = _scan_frame(self._i, i1, p.log_eps, self.e_hi, self.e_lo, self._cand)
+            if n_bad:
+                raise ValueError(f"{self._source_name}: the sample at t = {t1!r} s has {n_bad} non-finite pixel values")
+            self._interval(self.t, t1, self._i, i1, n_cand)
+            self.t = t1
+            self._i = i1
+            self.n_samples += 1
+            return
+        if self.geometric_steps:
+            # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz, halved
+            # while the midpoint shows an excursion hiding a crossing
+            dt = self._propose()
+            while True:
+                t1 = min(self.t + dt, self.duration_s)
+                i1, spans, n_spans = self._candidate(t1)
+                if t1 - self.t <= p.min_step_s * 1.0000001 or not self._hides_crossing(0.5 * (self.t + t1)):
+                    break
+                self.n_rejected += 1
+                dt = max(p.min_step_s, 0.5 * (t1 - self.t))
+            n_cand, _ = self._scan(self._i, i1, spans, n_spans)
+            self._interval(self.t, t1, self._i, i1, n_cand)
+            self.t = t1
+            self._accept(i1)
+            self.n_samples += 1
+            return
         limit = p.lambda_ * self._c_min
         dt = self._propose()
         if not self.verified:
@@ -340,7 +526,14 @@ class EventConverter:
         p = self.params
         args = self._kernel_args(t0, t1, i0, i1)
         empty_i, empty_f, empty_b = self._empty
+        if self.sensor_effects:
+            self._sensor_step(t0, t1, i0, i1)
+            return
         n = moved = 0
+        if self.exact:
+            if n_cand:
+                self._raw_crossings(t0, t1, i0, i1, n_cand)
+            n_cand = 0  # the linear path below has nothing left to do
         if n_cand:
             # two-pass sizing over the candidates: count, then fill
             n, moved = _crossings(*args, False, self._cand, n_cand, empty_i, empty_f, empty_f, empty_b)
@@ -352,27 +545,182 @@ class EventConverter:
             _crossings(*args, True, self._cand, n_cand, pix, t_true, t_emit, pol)
         if n:
             # geometric truth is computed per flush, in one vectorised call (cheaper than per sample)
-            truth = None if self._geometric else self._truth(pix, t_true, t0, t1, i0, i1)
+            truth = None if self._geometric or not self._has_flow else self._truth(pix, t_true, t0, t1, i0, i1)
             self._pending.append((pix, t_emit, t_true, pol, truth))
-        else:
+        elif not self.exact:
             self._flow = None
         if p.noise_rate_hz > 0 and t1 > self._noise_until:
-            # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
-            # block grid does not depend on the samples, so neither does the noise)
-            self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
-            nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
-                     self.noise_count)
-            m = _noise(*nargs, False, empty_i, empty_f, empty_b)
-            if m:
-                pix = np.empty(m, dtype=np.int64)
-                tn = np.empty(m)
-                pol = np.empty(m, dtype=np.bool_)
-                _noise(*nargs, True, pix, tn, pol)
-                self._pending.append((pix, tn, tn, pol, False))  # False: noise, no truth
+            self._noise_block(t1)
+
+    def _noise_block(self, t1: float) -> None:
+        """Independent background activity up to the end of the noise block holding ``t1``."""
+        p = self.params
+        empty_i, empty_f, empty_b = self._empty
+        # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
+        # block grid does not depend on the samples, so neither does the noise)
+        self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
+        nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
+                 self.noise_count)
+        m = _noise(*nargs, False, empty_i, empty_f, empty_b)
+        if m:
+            pix = np.empty(m, dtype=np.int64)
+            tn = np.empty(m)
+            pol = np.empty(m, dtype=np.bool_)
+            _noise(*nargs, True, pix, tn, pol)
+            self._pending.append((pix, tn, tn, pol, False))  # False: noise, no truth
+
+    # ------------------------------------------------------------------ sensor effects
+    def _reset_sensor(self, leak_rng) -> None:
+        """State of the sensor effects: the effective log intensity, leak slopes, shot-noise arrivals."""
+        p = self.params
+        if not self.sensor_effects:
+            return
+        npix = self.width * self.height
+        self._l_lp = np.log(self._i + p.log_eps)  # low-passed L (== L at t = 0)
+        self._l_eff = self._l_lp.copy()  # what the events fire on: L_lp plus the leak drift
+        rate = np.full(npix, p.leak_rate_hz)
+        if p.leak_rate_hz > 0 and p.leak_rate_sigma > 0:
+            rate = p.leak_rate_hz * np.maximum(0.0, 1.0 + p.leak_rate_sigma * leak_rng.standard_normal(npix))
+        self._leak_slope = rate * self.cpos  # log units per second
+        self.shot_next = np.empty(npix)
+        self.shot_count = np.zeros(npix, dtype=np.int64)
+        if p.shot_noise_rate_hz > 0:
+            _noise_first_arrivals(p.shot_noise_rate_hz, self._shot_time_seed, self.shot_next)
+        if p.noise_resets:
+            self._noise_until = math.inf  # resetting noise is drawn per step, not in blocks
+
+    def _arrivals(self, t1, rate_hz, time_seed, pol_seed, next_t, count):
+        """Poisson arrivals before ``t1`` (:func:`_noise`), as (pix, t, pol)."""
+        e = np.empty(0)
+        nargs = (t1, rate_hz, time_seed, pol_seed, next_t, count)
+        m = _noise(*nargs, False, self._empty[0], e, self._empty[2])
+        pix = np.empty(m, dtype=np.int64)
+        tn = np.empty(m)
+        pol = np.empty(m, dtype=np.bool_)
+        if m:
+            _noise(*nargs, True, pix, tn, pol)
+        return pix, tn, pol
+
+    def _sensor_step(self, t0: float, t1: float, i0: np.ndarray, i1: np.ndarray) -> None:
+        """One step with the sensor effects (see :class:`ConverterParams` and :mod:`evedge.sim._sensor`).
+
+        Low-pass, then the leak drift (added to ``L``: the same as lowering the
+        reference), then the crossings and the noise arrivals of the step in
+        time order per pixel (:func:`_sensor_interval`).
+        """
+        p = self.params
+        l_new = np.log(i1 + p.log_eps)
+        if p.lowpass_cutoff_hz > 0:
+            _lowpass(self._l_lp, l_new, i1, t1 - t0, p.lowpass_cutoff_hz)
+            l_new = self._l_lp
+        l1 = l_new + self._leak_slope * t1 if p.leak_rate_hz > 0 else l_new.copy()
+        parts = []
+        if p.noise_resets and p.noise_rate_hz > 0:
+            parts.append(self._arrivals(t1, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed,
+                                        self.noise_next, self.noise_count))
+        if p.shot_noise_rate_hz > 0:
+            pix, tn, pol = self._arrivals(t1, p.shot_noise_rate_hz, self._shot_time_seed, self._shot_pol_seed,
+                                          self.shot_next, self.shot_count)
+            ok = np.empty(pix.shape[0], dtype=np.bool_)
+            _thin_shot(pix, tn, pol, pix.shape[0], i1, self._shot_thin_seed, ok)
+            parts.append((pix[ok], tn[ok], pol[ok]))
+        if parts:
+            npix_, nt, npol = (np.concatenate([c[k] for c in parts]) for k in range(3))
+            order = np.lexsort((nt, npix_))
+            npix_, nt, npol = npix_[order], nt[order], npol[order]
+        else:
+            npix_, nt, npol = self._empty[0], np.empty(0), self._empty[2]
+        args = (self._l_eff, l1, t0, t1, self.lref, self.cpos, self.cneg, self.last_t, p.refractory_us * 1e-6,
+                self.seq, p.jitter_us * 1e-6, self._jitter_seed, npix_, nt, npol, npix_.shape[0])
+        e = np.empty(0)
+        n = _sensor_interval(*args, False, self._empty[0], e, e, self._empty[2], self._empty[2])
+        out = (np.empty(n, dtype=np.int64), np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_),
+               np.empty(n, dtype=np.bool_))
+        _sensor_interval(*args, True, *out)
+        self._l_eff = l1
+        if n:
+            pix, t_true, t_emit, pol, noise = out
+            if self._geometric:
+                last = noise if np.any(noise) else None  # geometric truth: computed at the flush
+            else:
+                last = empty_truth(n)
+                signal = ~noise
+                if np.any(signal):
+                    last[signal] = self._truth(pix[signal], t_true[signal], t0, t1, i0, i1)
+            self._pending.append((pix, t_emit, t_true, pol, last))
+        if p.noise_rate_hz > 0 and not p.noise_resets and t1 > self._noise_until:
+            self._noise_block(t1)
+
+    def _raw_crossings(self, t0, t1, i0, i1, n_cand) -> None:
+        """Exact mode: the crossings of one interval with their levels, kept until :meth:`_refine`."""
+        p = self.params
+        e = np.empty(0)
+        n, moved = _crossing_levels(i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos,
+                                    self.cneg, False, self._cand, n_cand, self._empty[0], e, e, self._empty[2])
+        if not moved:
+            return
+        pix = np.empty(n, dtype=np.int64)
+        level = np.empty(n)
+        t_lin = np.empty(n)
+        pol = np.empty(n, dtype=np.bool_)
+        _crossing_levels(i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg, True,
+                         self._cand, n_cand, pix, level, t_lin, pol)
+        # the sample buffers are reused: keep the two end values of every crossing's pixel
+        self._raw.append((pix, level, pol, t0, t1, i0[pix], i1[pix]))
+
+    def _refine(self) -> None:
+        """Exact mode: solve every pending crossing for its instant, then apply refractory and jitter.
+
+        Crossing of level ``l`` by pixel ``i`` between samples ``t0 < t1``:
+        the root of ``f(t) = I_i(t) - (exp(l) - eps)`` in ``[t0, t1]``, where
+        ``I_i(t)`` is the renderer's closed-form pixel-area intensity
+        (``pixel_intensity``) and ``f(t0)``, ``f(t1)`` (from the samples) have
+        opposite signs; found by regula falsi (Anderson-Bjorck variant, with a
+        bisection safeguard) to :data:`EXACT_TOL_S` / :data:`EXACT_TOL_T`, all crossings at once (one
+        ``pixel_intensity`` call per step). The refractory period and the
+        jitter then act on the exact times, per pixel in time order, as in the
+        linear path. Each crossing's time depends only on its own bracket, so
+        the result does not depend on how the run is chunked.
+        """
+        if not self._raw:
+            return
+        parts = self._raw
+        self._raw = []
+        p = self.params
+        pix, level, pol, ia, ib = (np.concatenate([c[k] for c in parts]) for k in (0, 1, 2, 5, 6))
+        sizes = [c[0].shape[0] for c in parts]
+        ta = np.repeat(np.array([c[3] for c in parts]), sizes)
+        tb = np.repeat(np.array([c[4] for c in parts]), sizes)
+        n = pix.shape[0]
+        fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
+        active = np.empty(n, dtype=np.bool_)
+        side = np.zeros(n, dtype=np.int8)
+        target = np.exp(level) - p.log_eps  # the intensity of the level: the same root, found faster
+        left = _root_start(ia, ib, target, EXACT_SHIFT_I, ta, tb, fa, fb, tc, active)
+        tp, fp = tb.copy(), fb.copy()  # the previous evaluation of each crossing (first: the end of the bracket)
+        steps = 0
+        while left and steps < _EXACT_MAX_STEPS:
+            idx = np.flatnonzero(active)
+            ic = np.ascontiguousarray(self.renderer.pixel_intensity(pix[idx], tc[idx]), dtype=np.float64)
+            left = _root_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, EXACT_TOL_S, EXACT_TOL_I,
+                                  EXACT_TOL_T, active)
+            steps += 1
+        self.n_root_steps += steps
+        keep = np.empty(n, dtype=np.bool_)
+        t_emit = np.empty(n)
+        k = _refractory_jitter(pix, tc, self.last_t, self.seq, p.refractory_us * 1e-6, p.jitter_us * 1e-6,
+                               self._jitter_seed, keep, t_emit)
+        if k:
+            self._pending.append((pix[keep], t_emit[keep], tc[keep], pol[keep], None))
 
     def _truth(self, pix, t_true, t0=None, t1=None, i0=None, i1=None) -> np.ndarray:
         x = pix % self.width
         y = pix // self.width
+        if not self._has_flow:
+            # frames input: the events are signal, their flow and normal unknown
+            out = empty_truth(pix.shape[0])
+            out["is_signal"] = True
+            return out
         out = np.empty(pix.shape[0], dtype=TRUTH_DTYPE)
         if self._geometric:
             vx, vy, nx, ny = self.renderer.point_truth(x.astype(np.float64), y.astype(np.float64), t_true)
@@ -410,6 +758,7 @@ class EventConverter:
     def _flush(self, cut_us: int | None) -> tuple[np.ndarray, np.ndarray]:
         # pending parts: (pix, t_emit, t_true, p, truth) with truth None (geometric truth still to
         # compute), False (noise) or a TRUTH_DTYPE array
+        self._refine()
         if not self._pending:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
         parts = self._pending
@@ -432,7 +781,8 @@ class EventConverter:
                 start = stop
             if np.any(todo):
                 truth[todo] = self._truth(pix[todo], t_true[todo])
-        pix, _, pol, truth, t_us = self._finished_in_order(pix, t, t_true, pol, truth, cut_us)
+        pix, _, pol, truth, t_us, t = self._finished_in_order(pix, t, t_true, pol, truth, cut_us)
+        truth["t_ns"] = _ns(t)
         return self._events(pix, t_us, pol), truth
 
     def _finished_in_order(self, pix, t, t_true, pol, last, cut_us):
@@ -460,7 +810,7 @@ class EventConverter:
         sorted_key = key[order]
         if np.any(sorted_key[1:] == sorted_key[:-1]):
             order = np.lexsort((t, key))
-        return pix[order], t_true[order], pol[order], last[order], t_us[order]
+        return pix[order], t_true[order], pol[order], last[order], t_us[order], t[order]
 
     def _events(self, pix, t_us, pol):
         """Event array of flat pixel indices, int64 us times and polarities (already in order)."""
@@ -486,11 +836,13 @@ class EventConverter:
             if isinstance(c[4], np.ndarray):
                 noise[start:start + size] = c[4]
             start += size
-        pix, t_true, pol, noise, t_us = self._finished_in_order(pix, t, t_true, pol, noise, cut_us)
+        pix, t_true, pol, noise, t_us, t = self._finished_in_order(pix, t, t_true, pol, noise, cut_us)
         n = pix.shape[0]
         ev = self._events(pix, t_us, pol)
         if not np.any(noise):
-            return ev, self._truth(pix, t_true)
+            truth = self._truth(pix, t_true)
+            truth["t_ns"] = _ns(t)
+            return ev, truth
         signal = ~noise
         vx, vy, nx, ny = self.renderer.point_truth((pix[signal] % self.width).astype(np.float64),
                                                    (pix[signal] // self.width).astype(np.float64), t_true[signal])
@@ -501,6 +853,7 @@ class EventConverter:
             column[signal] = value
             truth[name] = column
         truth["is_signal"] = signal
+        truth["t_ns"] = _ns(t)
         return ev, truth
 
     def process(self, until_s: float) -> tuple[np.ndarray, np.ndarray]:

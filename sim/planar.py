@@ -20,8 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
+from ._exact import _shapes_at, _stripes_at, _stripes_truth
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
+from .thin_edges import mark_circle, mark_segments, mark_stripes
 
 #: Coverage tolerance of the edge-map definition (px^2).
 EDGE_AREA_TOL = 1e-9
@@ -189,6 +191,12 @@ class ShapesRenderer(_CoverageRenderer):
         self._allx = np.concatenate([self._px, self._cx])
         self._ally = np.concatenate([self._py, self._cy])
         self._cvalue = np.array([c.intensity for c in self.circles], dtype=np.float64)
+        # bounding circles of the polygons (object coordinates): pixel_intensity skips far polygons
+        self._bcx = np.array([p.vertices_px[:, 0].mean() for p in self.polygons], dtype=np.float64)
+        self._bcy = np.array([p.vertices_px[:, 1].mean() for p in self.polygons], dtype=np.float64)
+        self._br = np.array([np.max(np.hypot(p.vertices_px[:, 0] - a, p.vertices_px[:, 1] - b))
+                             for p, a, b in zip(self.polygons, self._bcx, self._bcy)], dtype=np.float64)
+        self._motion_array = None  # the motion's parameters for the pixel_intensity kernel
         self._qx = np.empty_like(self._allx)  # scratch: image positions of the points
         self._qy = np.empty_like(self._allx)
 
@@ -201,6 +209,47 @@ class ShapesRenderer(_CoverageRenderer):
                      self._pstart, self._pvalue, self._cr, self._cvalue, self.background, EDGE_AREA_TOL,
                      self._may_overlap, cx, cy, math.cos(theta), math.sin(theta), sx, sy, self._qx, self._qy, boxes)
         return boxes
+
+    def thin_edges(self, t_s: float) -> np.ndarray:
+        """Thin exact edge map at ``t_s``: one pixel per boundary crossing of each row and column
+        (:mod:`evedge.sim.thin_edges`)."""
+        img = np.zeros((self.height, self.width), dtype=bool)
+        for poly in self.polygons:
+            px, py = self.motion.to_image(poly.vertices_px[:, 0], poly.vertices_px[:, 1], float(t_s))
+            mark_segments(img, px, py, np.roll(px, -1), np.roll(py, -1))
+        for c in self.circles:
+            cx, cy = self.motion.to_image(np.array([c.center_px[0]]), np.array([c.center_px[1]]), float(t_s))
+            mark_circle(img, float(cx[0]), float(cy[0]), c.radius_px)
+        return img
+    def pixel_intensity(self, pix: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Exact intensity of flat pixels ``pix`` at times ``t_s`` (one time per pixel).
+
+        Parameters
+        ----------
+        pix : numpy.ndarray
+            int64 flat pixel indices ``y * width + x``.
+        t_s : numpy.ndarray
+            float64 times (s), the shape of ``pix``.
+
+        Returns
+        -------
+        numpy.ndarray
+            float64 intensities: the pixel-area coverage of every shape at its
+            time (the values of :meth:`intensity`, from clipping against the
+            pixel square rather than row accumulation: equal to ~1e-15).
+        """
+        m = self.motion
+        if self._motion_array is None:
+            self._motion_array = np.array([m.angle_rad, m.angular_velocity_rad_s, m.angular_acceleration_rad_s2,
+                                           m.angle_amplitude_rad, m.frequency_hz, m.chirp_hz_s, *m.velocity_px_s,
+                                           *m.acceleration_px_s2, *m.amplitude_px], dtype=np.float64)
+        cx, cy = m.center_px
+        out = np.empty(pix.shape[0])
+        _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_array, self.width, cx, cy,
+                   self._px, self._py, self._pstart,
+                   self._pvalue, self._bcx, self._bcy, self._br, self._cx, self._cy, self._cr, self._cvalue,
+                   self.background, self._may_overlap, out)
+        return out
 
     def flow(self, t_s: float) -> np.ndarray:
         yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
@@ -283,6 +332,7 @@ class StripesRenderer(_CoverageRenderer):
             if np.any(self._layer_of_row[r0:r1] >= 0):
                 raise ValueError(f"StripesRenderer: layer {k} rows {layer.rows} overlap another layer")
             self._layer_of_row[r0:r1] = k
+        self._layer_arrays = None
 
     def _draw(self, t_s: float, out: np.ndarray, edge: np.ndarray) -> np.ndarray:
         w, h = self.width, self.height
@@ -293,12 +343,52 @@ class StripesRenderer(_CoverageRenderer):
                             layer.period_px, layer.duty, layer.dark, layer.light, EDGE_AREA_TOL)
         return np.array([0, h, 0, w], dtype=np.int64)  # stripes change everywhere
 
+    def thin_edges(self, t_s: float) -> np.ndarray:
+        """Thin exact edge map at ``t_s``: one pixel per stripe-boundary crossing of each row and column
+        (:mod:`evedge.sim.thin_edges`)."""
+        img = np.zeros((self.height, self.width), dtype=bool)
+        for layer in self.layers:
+            nx, ny = layer.normal
+            offset = nx * layer.velocity_px_s[0] * t_s + ny * layer.velocity_px_s[1] * t_s + layer.phase_px
+            mark_stripes(img, layer.rows[0], layer.rows[1], nx, ny, offset, layer.period_px, layer.duty)
+        return img
+
     def intensity_into(self, t_s: float, out: np.ndarray, dirty: np.ndarray | None) -> np.ndarray:
         """As :meth:`_CoverageRenderer.intensity_into`; the stripes overwrite their rows, so no reset."""
         if dirty is None:
             out.fill(self.background)
         # rows of no layer are never written: they keep the background of the first fill
         return self._draw(t_s, out, self._edge_buffer())
+
+    @property
+    def monotone_step_px(self) -> float:
+        """Largest image displacement over which every pixel's intensity is monotone in time.
+
+        Each layer's edges are straight and move at a constant velocity, so a
+        pixel whose square meets one edge only sees its coverage change one
+        way. The square spans at most ``|nx| + |ny|`` along the normal; with
+        stripes and gaps at least ``w`` wide, a displacement below
+        ``w - (|nx| + |ny|)`` never brings a second edge into it. The
+        converter samples such renderers by ``max_step_px`` alone when exact
+        crossing times are on (see :mod:`evedge.sim.converter`).
+        """
+        out = math.inf
+        for layer in self.layers:
+            nx, ny = layer.normal
+            width = min(layer.duty, 1.0 - layer.duty) * layer.period_px
+            out = min(out, width - (abs(nx) + abs(ny)))
+        return max(0.0, out)
+
+    def pixel_intensity(self, pix: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Exact intensity of flat pixels ``pix`` at times ``t_s`` (as :meth:`ShapesRenderer.pixel_intensity`).
+
+        The arithmetic is the renderer's, so at a sample time the values are
+        those of :meth:`intensity` to the bit.
+        """
+        out = np.empty(pix.shape[0])
+        _stripes_at(pix, np.asarray(t_s, dtype=np.float64), self.width, self._layer_of_row, *self._layers(),
+                    self.background, out)
+        return out
 
     def flow(self, t_s: float) -> np.ndarray:
         out = np.zeros((2, self.height, self.width))
@@ -311,35 +401,26 @@ class StripesRenderer(_CoverageRenderer):
     def max_speed_px_s(self, t0_s: float, t1_s: float) -> float:
         return max([math.hypot(*layer.velocity_px_s) for layer in self.layers], default=0.0)
 
+    def _layers(self):
+        """Per-layer parameters as float64 arrays (for the kernels)."""
+        if self._layer_arrays is None:
+            cols = [[layer.normal[0] for layer in self.layers], [layer.normal[1] for layer in self.layers],
+                    [layer.velocity_px_s[0] for layer in self.layers], [layer.velocity_px_s[1] for layer in self.layers],
+                    [layer.phase_px for layer in self.layers], [layer.period_px for layer in self.layers],
+                    [layer.duty for layer in self.layers], [layer.dark for layer in self.layers],
+                    [layer.light for layer in self.layers]]
+            self._layer_arrays = [np.array(c, dtype=np.float64) for c in cols]
+        return self._layer_arrays
+
     def point_truth(self, x, y, t_s):
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        t_s = np.asarray(t_s, dtype=np.float64)
-        vx = np.zeros_like(x)
-        vy = np.zeros_like(x)
-        nx = np.full_like(x, np.nan)
-        ny = np.full_like(x, np.nan)
-        rows = np.clip(y.astype(np.int64), 0, self.height - 1)
-        k_of = self._layer_of_row[rows]
-        for k, layer in enumerate(self.layers):
-            sel = k_of == k
-            if not np.any(sel):
-                continue
-            n0, n1 = layer.normal
-            v0, v1 = layer.velocity_px_s
-            vx[sel] = v0
-            vy[sel] = v1
-            u = n0 * (x[sel] - v0 * t_s[sel]) + n1 * (y[sel] - v1 * t_s[sel]) - layer.phase_px
-            r = np.mod(u, layer.period_px)
-            dp = layer.duty * layer.period_px
-            # boundaries at r = 0 and r = period (light -> dark along +n) and r = dp (dark -> light)
-            d_start = np.minimum(r, layer.period_px - r)
-            d_end = np.abs(r - dp)
-            sign = np.where(d_end < d_start, 1.0, -1.0)
-            if layer.dark > layer.light:
-                sign = -sign
-            nx[sel] = sign * n0
-            ny[sel] = sign * n1
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        t_s = np.ascontiguousarray(np.broadcast_to(np.asarray(t_s, dtype=np.float64), x.shape))
+        vx, vy, nx, ny = (np.empty_like(x) for _ in range(4))
+        # the stripe coordinate u = n . (p - v t) - phase; boundaries at r = 0 and r = period (light -> dark
+        # along +n) and r = duty * period (dark -> light); the normal of the nearer one, towards brighter
+        _stripes_truth(x.ravel(), y.ravel(), t_s.ravel(), self.height, self._layer_of_row, *self._layers(),
+                       vx.ravel(), vy.ravel(), nx.ravel(), ny.ravel())
         return vx, vy, nx, ny
 
     def close(self) -> None:

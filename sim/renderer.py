@@ -17,6 +17,14 @@ it redraws into a reused flat buffer and returns boxes outside which the image
 is its constant background; the converter then reuses two buffers and scans
 only those boxes (same events, fewer memory passes).
 
+A renderer may also offer ``pixel_intensity(pix, t_s) -> I``: the exact
+intensity of flat pixels ``pix`` at times ``t_s`` (one per pixel; the planar
+ones do). With geometric truth it lets the converter solve every crossing
+for its exact instant instead of interpolating between samples.
+
+A renderer with fixed sample times (frames input) offers
+``next_sample_s(t_s)``; the converter then samples exactly those times.
+
 Renderers that know their geometry may also implement :class:`GeometricTruth`;
 the simulator then takes each event's flow and brightness-gradient direction
 from the geometry at the event's exact time instead of from the sampled frames.

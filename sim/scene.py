@@ -9,22 +9,21 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from evedge.sensors import SENSOR_MODELS
+
 from .converter import ConverterParams
 
-#: Sensor presets: size and pinhole intrinsics (fx, fy, cx, cy) in px.
-#: davis240: the Event Camera Dataset's calibration of its DAVIS240C
-#: (shapes sequences); dvs128: a 4.5 mm lens on 40 um pixels (fx = 112.5).
-SENSOR_PRESETS = {
-    "dvs128": dict(width=128, height=128, fx=112.5, fy=112.5, cx=63.5, cy=63.5),
-    "davis240": dict(width=240, height=180, fx=199.092, fy=198.829, cx=132.192, cy=110.713),
-    "davis346": dict(width=346, height=260, fx=260.0, fy=260.0, cx=172.5, cy=129.5),
-}
+#: Sensor presets: size and pinhole intrinsics (fx, fy, cx, cy) in px, from
+#: :data:`evedge.sensors.SENSOR_MODELS` (davis240: the Event Camera Dataset's
+#: calibration of its DAVIS240C; the others a nominal lens).
+SENSOR_PRESETS = {name: dict(width=m.width, height=m.height, fx=m.fx, fy=m.fy, cx=m.cx, cy=m.cy)
+                  for name, m in SENSOR_MODELS.items()}
 
 SCENE_KINDS = ("stripes", "shapes", "mesh")
 #: Longest scene: event times are int64 microseconds (2**63 us is about 9.22e12 s).
@@ -107,6 +106,12 @@ class _Table:
         if choices is not None and v not in choices:
             self.fail(name, f"must be one of {list(choices)}, got {v!r}")
         return v
+
+    def boolean(self, name: str, default=None) -> bool:
+        present, v = self._lookup(name, default)
+        if present and not isinstance(v, bool):
+            self.fail(name, f"expected true or false, got {v!r}")
+        return bool(v)
 
     def vector(self, name: str, length: int, default=None):
         present, v = self._lookup(name, default)
@@ -214,6 +219,20 @@ def _sensor(t: _Table) -> Sensor:
 
 def _params(t: _Table) -> ConverterParams:
     d = ConverterParams()
+    if t.has("preset"):
+        # a sensor's typical pixel settings (evedge.sensors); the keys below still override them
+        name = t.string("preset", "")
+        if name not in SENSOR_MODELS:
+            t.fail("preset", f"unknown preset {name!r}; known: {sorted(SENSOR_MODELS)}")
+        d = ConverterParams(**SENSOR_MODELS[name].event_params)
+    if t.has("effects"):
+        # a realistic sensor-effect preset (v2e's); explicit keys below still override it
+        from .converter import SENSOR_EFFECT_PRESETS
+
+        name = t.string("effects", "")
+        if name not in SENSOR_EFFECT_PRESETS:
+            t.fail("effects", f"unknown effects preset {name!r}; known: {sorted(SENSOR_EFFECT_PRESETS)}")
+        d = replace(d, **SENSOR_EFFECT_PRESETS[name])
     kw = dict(
         contrast_pos=t.number("contrast_pos", d.contrast_pos, lo=0, lo_open=True),
         contrast_neg=t.number("contrast_neg", d.contrast_neg, lo=0, lo_open=True),
@@ -227,7 +246,13 @@ def _params(t: _Table) -> ConverterParams:
         min_rate_hz=t.number("min_rate_hz", d.min_rate_hz, lo=0, lo_open=True, hi=1e6),
         max_step_px=t.number("max_step_px", d.max_step_px, lo=0, lo_open=True),
         min_step_s=t.number("min_step_s", d.min_step_s, lo=1e-9),  # below, t + step == t: no progress
-        sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted")),
+        sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted", "geometric")),
+        crossing_times=t.string("crossing_times", d.crossing_times, choices=("auto", "exact", "linear")),
+        lowpass_cutoff_hz=t.number("lowpass_cutoff_hz", d.lowpass_cutoff_hz, lo=0, hi=1e9),
+        leak_rate_hz=t.number("leak_rate_hz", d.leak_rate_hz, lo=0, hi=1e6),
+        leak_rate_sigma=t.number("leak_rate_sigma", d.leak_rate_sigma, lo=0),
+        shot_noise_rate_hz=t.number("shot_noise_rate_hz", d.shot_noise_rate_hz, lo=0, hi=1e6),
+        noise_resets=t.boolean("noise_resets", d.noise_resets),
     )
     t.finish()
     return ConverterParams(**kw)
@@ -383,6 +408,38 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     return Scene(name=name, kind=kind, source=source, duration_s=duration, seed=seed, frame_rate_hz=frame_rate,
                  sensor=sensor, params=params, background=background, objects=objects, motion=motion,
                  sections=tuple(sections), description=description, raw=data, setup_3d=setup_3d)
+
+
+def with_sensor(scene: Scene, preset: str) -> Scene:
+    """``scene`` re-validated on the sensor preset ``preset`` (its own ``[sensor]`` table replaced).
+
+    Scene coordinates (shape centres, ...) stay in pixels; fractions of the
+    image (stripe bands) follow the new size.
+
+    Parameters
+    ----------
+    scene : Scene
+    preset : str
+        A name of :data:`evedge.sensors.SENSOR_MODELS`.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        Unknown preset (named with the known ones).
+
+    Examples
+    --------
+    >>> s = with_sensor(load_scene("scenes/stripes.toml"), "gen4")  # doctest: +SKIP
+    >>> (s.sensor.width, s.sensor.height)  # doctest: +SKIP
+    (1280, 720)
+    """
+    data = dict(scene.raw)
+    data["sensor"] = {"preset": str(preset).strip().lower()}
+    return parse_scene(data, source=scene.source)
 
 
 def load_scene(path) -> Scene:

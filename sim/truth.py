@@ -11,7 +11,10 @@
 - ``lifetime_us = 1e6 / |v . n|``: time for the edge to move one pixel along
   its normal (``inf`` when the edge does not move along its normal);
 - ``is_signal``: False for background-activity noise events, whose other
-  fields are NaN.
+  fields are NaN;
+- ``t_ns``: the event's time in int64 nanoseconds, the same instant as the
+  event's ``t`` (us, rounded) at sub-microsecond precision (exact crossing
+  times on the analytic scenes; see :mod:`evedge.sim.converter`).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ TRUTH_DTYPE = np.dtype([
     ("ny", np.float64),
     ("lifetime_us", np.float64),
     ("is_signal", np.bool_),
+    ("t_ns", np.int64),
 ])
 
 
@@ -34,6 +38,7 @@ def empty_truth(n: int) -> np.ndarray:
     for name in ("vx_px_s", "vy_px_s", "nx", "ny", "lifetime_us"):
         out[name] = np.nan
     out["is_signal"] = False
+    out["t_ns"] = 0  # set by the caller
     return out
 
 

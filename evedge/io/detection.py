@@ -94,16 +94,20 @@ def file_sha256(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def _dataset(group, name: str, data: np.ndarray) -> None:
+def _dataset(group, name: str, data: np.ndarray, compress: bool = True) -> None:
     options = {"track_times": False}
-    if data.size:
+    if data.size and compress:
         chunks = (max(1, min(data.shape[0], _CHUNK if data.ndim == 1 else 1)),) + data.shape[1:]
         options.update(chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
     group.create_dataset(name, data=data, **options)
 
 
-def write_detection(path: str | os.PathLike, detection: Detection) -> Path:
+def write_detection(path: str | os.PathLike, detection: Detection, *, compress_per_event: bool = False) -> Path:
     """Write a :class:`Detection` (temporary file, then rename).
+
+    The edge frames are gzip-compressed; the per-event columns (events, lifetimes)
+    only with ``compress_per_event``: gzip costs ~0.9 us per event (about as much
+    as the whole detector) for a file ~2x smaller; readers see no difference.
 
     Raises
     ------
@@ -142,11 +146,11 @@ def write_detection(path: str | os.PathLike, detection: Detection) -> Path:
         if ev is not None:
             g = f.create_group("events", track_order=True)
             for name in ("x", "y", "t", "p"):
-                _dataset(g, name, np.ascontiguousarray(ev[name]))
+                _dataset(g, name, np.ascontiguousarray(ev[name]), compress_per_event)
         if lt is not None:
             g = f.create_group("lifetimes", track_order=True)
             for name, dtype in LIFETIME_COLUMNS:
-                _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype))
+                _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype), compress_per_event)
         if detection.edges is not None:
             g = f.create_group("edges", track_order=True)
             _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))

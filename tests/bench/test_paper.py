@@ -1,4 +1,4 @@
-"""The runner end to end on tiny inputs: results.json keys, one self-contained report.html; CLI."""
+"""The runner end to end on tiny inputs: results.json keys, the long table, one self-contained report.html; CLI."""
 
 import json
 import re
@@ -200,30 +200,32 @@ def test_cli_bad_bench_options_are_usage_errors(tmp_path):
 
 def test_report_states_the_policy_effect_from_the_numbers():
     """Regression: the report asserted, by hand, that the display policy moves the CDM more than the
-    estimator does (false on slider_depth: about 1 point vs about 40). It now reports both, computed."""
+    estimator does (false on slider_depth: about 1 point vs about 40). It now reports both, computed
+    from the table (verdicts.policy_effect); the report only renders them."""
     from evedge.bench.report import _display_headline, _policy_effect_text
-    from evedge.bench.verdicts import all_verdicts
+    from evedge.bench.results import ResultsTable, cdm_rows, real_rows
+    from evedge.bench.verdicts import all_verdicts, display_summary, policy_effect
 
     def sec(m):
         return {"slow": {"median": m, "n": 3}, "fast": {"median": m, "n": 3}}
 
-    results = {"cdm": {"s": {"exact": {"proposed": sec(80.0), "proposed_noclear": sec(70.0),
-                                       "mueggler": sec(50.0), "mueggler_noclear": sec(46.0),
-                                       "acc_1ms": sec(10.0), "acc_30ms": sec(20.0)}}},
-               "real": {"r": {"proposed": {"median": {"c": 40.0}}, "proposed_noclear": {"median": {"c": 41.0}},
-                              "mueggler": {"median": {"c": None}}, "mueggler_noclear": {"median": {"c": 5.0}}}},
-               "run": {}}
-    text = _policy_effect_text(results)
+    cdm = {"exact": {"proposed": sec(80.0), "proposed_noclear": sec(70.0), "mueggler": sec(50.0),
+                     "mueggler_noclear": sec(46.0), "acc_1ms": sec(10.0), "acc_30ms": sec(20.0)}}
+    real = {"proposed": {"median": {"c": 40.0}}, "proposed_noclear": {"median": {"c": 41.0}},
+            "mueggler": {"median": {"c": None}}, "mueggler_noclear": {"median": {"c": 5.0}}}
+    table = ResultsTable(cdm_rows("similarity", "s", cdm))
+    table.extend(real_rows("r", real), experiment="real")
+    results = {"policy_effect": policy_effect(table), "run": {}}
+    text = _policy_effect_text(results["policy_effect"])
     # policy: |80-70|, |50-46| twice (slow, fast), |40-41|: max 10, median 4;
     # estimator: |80-50|, |70-46| twice, |41-5| (Mueggler's null median is left out): max 36, median 30
     assert "by up to 10.0 points, median 4.0" in text
     assert "by up to 36.0, median 30.0" in text
-    results["real"]["r"]["mueggler"]["median"]["c"] = float("nan")  # in memory, before results.json
-    results["verdicts"] = all_verdicts(results)
+    results["display"] = {"summary": display_summary(all_verdicts(table))}
     html_text = _display_headline(results)  # the report's display-policy paragraph
     assert "moves the CDM more than the estimator" not in html_text
     assert "by up to 36.0" in html_text
-    assert _policy_effect_text({}) == ""
+    assert _policy_effect_text(None) == "" and policy_effect(ResultsTable()) is None
     from evedge.bench.paper import NOTES
 
     assert not any("more than the estimator" in n for n in NOTES)
@@ -237,7 +239,7 @@ def _legacy_counts(verdicts, text):
 
 def test_results_table_and_declarative_claims_agree_with_the_verdicts(tiny_run):
     """The long table holds the experiments' numbers, and the claims computed from it (declarative
-    rules) agree with the detailed verdicts computed from results.json, group for group."""
+    rules) agree with the detailed verdicts (computed from the same table), group for group."""
     from markupsafe import escape
 
     from evedge.bench.claims import CLAIMS, evaluate
@@ -281,15 +283,24 @@ def test_cli_prints_one_line_per_claim(tmp_path):
 
 
 def test_verdicts_from_the_table_equal_those_from_the_nested_results(tiny_run):
-    from evedge.bench.results import cdm_view, read_results, real_view
-    from evedge.bench.verdicts import all_verdicts
+    """all_verdicts reads only the table (CSV or HDF5); its views rebuild exactly the nested results the
+    checks were written for (same verdicts, evidence and details)."""
+    from evedge.bench.results import cdm_view, diagnostics_view, lifetime_view, read_results, real_view
+    from evedge.bench.verdicts import (all_verdicts, cdm_verdicts, intra_verdicts, lifetime_verdicts,
+                                       real_verdicts)
 
     out, res = tiny_run
     table = read_results(out / "results.csv")
     data = json.loads((out / "results.json").read_text())
-    nested = {k: res[k] for k in ("cdm", "real", "fmeasure", "truth_tolerance_sensitivity", "lifetime",
-                                  "lifetime_datasets", "cdm_diagnostics")}
-    assert all_verdicts(nested) == all_verdicts(nested, table) == res["verdicts"]
+    from_nested = (cdm_verdicts(res["cdm"], res["cdm_diagnostics"])
+                   + intra_verdicts(res["fmeasure"], res["truth_tolerance_sensitivity"])
+                   + lifetime_verdicts(res["lifetime"], res["lifetime_datasets"]) + real_verdicts(res["real"]))
+    assert all_verdicts(table) == all_verdicts(read_results(out / "results.h5")) == res["verdicts"] == from_nested
     assert cdm_view(table).keys() == res["cdm"].keys()
+    assert diagnostics_view(table) == res["cdm_diagnostics"]
+    lifetime, _ = lifetime_view(table)
+    for m in ("proposed", "mueggler"):
+        assert lifetime["stripes_sim"][m]["peaks"] == res["lifetime"]["stripes_sim"][m]["peaks"]
+        assert lifetime["stripes_sim"][m]["shoulder_peaks"] == res["lifetime"]["stripes_sim"][m]["shoulder_peaks"]
     assert {k: {m: v["median"] for m, v in per.items()} for k, per in real_view(table).items()} == \
         {k: {m: v["median"] for m, v in per.items()} for k, per in data["real"].items()}

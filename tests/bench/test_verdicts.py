@@ -5,6 +5,8 @@ import pytest
 from evedge.bench.verdicts import (all_verdicts, cdm_verdicts, display_summary, intra_verdicts, lifetime_verdicts,
                                    real_verdicts)
 
+from evedge.bench.results import ResultsTable, lifetime_rows, real_rows
+
 PRIMARY_ONLY = ("predecessor",)
 
 
@@ -69,7 +71,10 @@ def test_lifetime_and_real_claims():
     real = {"r": {"proposed": {"median": {"c": 50.0}}, "acc_30ms": {"median": {"c": 60.0}}}}
     v = real_verdicts(real, displays=PRIMARY_ONLY)
     assert v[0]["status"] == "fails" and "acc_30ms" in v[0]["evidence"]
-    assert len(all_verdicts({"real": real, "lifetime": lt})) >= 4
+    table = ResultsTable()
+    table.extend(lifetime_rows(lt), experiment="lifetime")
+    table.extend(real_rows("r", real), experiment="real")
+    assert len(all_verdicts(table)) >= 4
 
 
 def test_consistency_verdict_flags_the_mueggler_time_origin_quirk():
@@ -200,7 +205,7 @@ def test_real_claim_under_both_policies_and_the_headline():
     assert (pol["lifetime_only"]["holds"], pol["lifetime_only"]["fails"]) == (0, 4)
     text = summ["text"]
     assert "primary comparison uses the predecessor display" in text and "fork" in text
-    assert "lifetime-only display (nothing cleared), 0 of 4 CDM claims hold and 4 fail" in text
+    assert "lifetime-only display (nothing cleared; a burst lives from its first event), 0 of 4 CDM claims hold and 4 fail" in text
     assert "scene, vs exact: slow 74.0 vs 43.0, fast 54.0 vs 62.0" in text
     assert "r, vs c: 70.0 vs 60.0" in text
 
@@ -251,3 +256,77 @@ def test_a_plugin_is_never_ranked_in_the_real_frames_claim():
     (v,) = real_verdicts({"rec": per}, displays=("predecessor",))
     assert v["status"] == "holds"
     assert "some.plugin:Method 90.0" in v["evidence"] and "other methods (not ranked)" in v["evidence"]
+
+
+def _region(mad, err=None, **kw):
+    q = {"n": 100, "n_events": 110, "share_estimated": 0.9, "mode": 5000.0, "median": 5000.0, "mad_log10": mad,
+         "iqr_over_median": 2 * mad, "frac_within": 0.9 - mad, "frac_of_events_within": 0.8 - mad}
+    if err is not None:
+        q.update(median_rel_error=err, frac_within_truth=0.9, frac_of_signal_within_truth=0.8)
+    return dict(q, **kw)
+
+
+def _lifetime_table(regions: bool) -> ResultsTable:
+    peaks = {"proposed": [{"mode": 1000.0, "median": 1000.0, "mad": 10.0, "mad_log10": 0.01, "fwhm_log10": 0.1,
+                           "fraction": 0.6}],
+             "mueggler": [{"mode": 1100.0, "median": 1100.0, "mad": 30.0, "mad_log10": 0.03, "fwhm_log10": 0.2,
+                           "fraction": 0.5}]}
+    lt = {"d": {m: {"peaks": p, "shoulder_peaks": [dict(p[0], kind="shoulder")], "median_rel_error": e,
+                    **({"regions": {"slow": _region(mad, e), "fast": _region(mad, e)}} if regions else {})}
+                for (m, p), mad, e in zip(peaks.items(), (0.02, 0.05), (0.05, 0.1))}}
+    info = {"d": {"regions": {"from_truth": True, "method": "rows grouped by their median true lifetime "
+                                                            "(simulator truth)"}}}
+    table = ResultsTable()
+    table.extend(lifetime_rows(lt, info), experiment="lifetime")
+    return table
+
+
+def _set(table, value, **where):
+    (hit,) = table.query(**where)
+    hit["value"] = value
+
+
+@pytest.mark.parametrize("regions", [True, False])
+def test_lifetime_verdict_reads_the_table(regions):
+    """Changing one row of the table (a region's MAD, a histogram peak's FWHM, an error) flips the verdict:
+    the lifetime check computes from the rows, histogram peaks and regions included."""
+    table = _lifetime_table(regions)
+    (v,) = [x for x in all_verdicts(table) if "lifetimes are sharper" in x["claim"]]
+    assert v["status"] == "holds"
+    assert "1.00 ms" in v["evidence"] and "shoulder" in v["evidence"]  # the peaks, read back from rows
+    if regions:
+        assert "simulator truth" in v["evidence"] and v["detail"]["measure"] == "region_mad_log10"
+        _set(table, 0.09, experiment="lifetime", variant="proposed", section="fast", metric="mad_log10")
+    else:
+        assert v["detail"]["measure"] == "global_fwhm"
+        _set(table, 0.3, experiment="lifetime", variant="proposed", section="all", metric="peak_0_fwhm_log10")
+    (w,) = [x for x in all_verdicts(table) if "lifetimes are sharper" in x["claim"]]
+    assert w["status"] == "fails"
+    if regions:
+        assert "0.0900 vs Mueggler 0.0500" in w["evidence"]
+    else:
+        assert "proposed 0.300" in w["evidence"]
+    table = _lifetime_table(regions)  # the error vs truth decides too
+    _set(table, 0.5, experiment="lifetime", variant="proposed",
+         section="slow" if regions else "all", metric="median_rel_error")
+    (w,) = [x for x in all_verdicts(table) if "lifetimes are sharper" in x["claim"]]
+    assert w["status"] == "fails"
+
+
+def test_cdm_why_reads_the_diagnostic_rows():
+    """The explanation of a lost CDM comparison comes from the similarity experiment's diagnostic rows."""
+    from evedge.bench.results import cdm_rows, diagnostic_rows
+
+    cdm = {"exact": {k: {"slow": _summ(m), "fast": _summ(m), "all": _summ(m)} for k, m in
+                     (("proposed", 50.0), ("mueggler", 60.0), ("acc_1ms", 10.0), ("acc_30ms", 20.0))}}
+    diag = {"pixel_ratio": {"exact": {"proposed": {"slow": 0.5, "fast": 0.6}, "mueggler": {"slow": 0.9, "fast": 1.0}}},
+            "lifetime": {"proposed": {s: {"n_signal": 10, "coverage": 0.4, "median_rel_error": 0.3, "over_2x": 0.1,
+                                          "under_2x": 0.2} for s in ("slow", "fast")}}}
+    table = ResultsTable()
+    table.extend(cdm_rows("similarity", "s", cdm) + diagnostic_rows("s", diag), experiment="similarity")
+    (v,) = [x for x in all_verdicts(table) if "beats Mueggler" in x["claim"] and x["display"] == "predecessor"]
+    assert v["status"] == "fails" and "proposed 0.50, mueggler 0.90" in v["evidence"]
+    assert "40% of signal events estimated" in v["evidence"]
+    _set(table, 0.25, experiment="similarity", variant="proposed", section="slow", metric="edge_pixel_ratio")
+    (w,) = [x for x in all_verdicts(table) if "beats Mueggler" in x["claim"] and x["display"] == "predecessor"]
+    assert "proposed 0.25, mueggler 0.90" in w["evidence"]

@@ -229,6 +229,35 @@ def test_detect_never_writes_or_deletes_through_a_link(tmp_path):
     assert sorted(p.name for p in elsewhere.iterdir()) == [victim.name]
 
 
+def test_detect_seed_is_honoured_by_random_methods_and_refused_by_the_others(tmp_path, edge_events):
+    """--seed reaches Mueggler's RANSAC (the output equals the library's with that seed) and intra's;
+    time and count accumulation draw no random numbers and refuse it with a clear error."""
+    from evedge.detector.mueggler import MuegglerParams, estimate_lifetimes_mueggler
+
+    ev, _ = edge_events(20, 16, 400, 0.3, n_edges=2, spacing_px=8, subpixel_px=0.3, jitter_frac=0.05, rng=2)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    size = SensorSize(20, 16)
+    got = {}
+    for method in ("mueggler", "intra"):
+        for seed in (0, 5):
+            out = tmp_path / f"{method}{seed}"
+            res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "20x16", "--method", method,
+                                              "--times", "20000", "--seed", str(seed), "--quiet"])
+            assert res.exit_code == 0, res.output
+            with h5py.File(out / "detection.h5") as f:
+                got[method, seed] = f["lifetimes/lifetime_us"][:]
+    want = estimate_lifetimes_mueggler(ev, size, MuegglerParams(seed=5))["lifetime_us"]
+    np.testing.assert_array_equal(got["mueggler", 5], want)
+    assert not np.array_equal(got["mueggler", 0], got["mueggler", 5], equal_nan=True)
+    assert not np.array_equal(got["intra", 0], got["intra", 5], equal_nan=True)
+    for method in ("time", "count"):
+        res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / method), "--sensor", "20x16",
+                                          "--method", method, "--seed", "5", "--quiet"])
+        assert res.exit_code == 2
+        assert f"method {method!r} has no parameter 'seed'" in res.output  # i8's CLI: --seed is --param seed
+
+
 def test_detect_params_config_and_self_description(tmp_path, edge_events):
     """--param and --config reach the estimator and the buffer, and are echoed; the file names its source."""
     from evedge.detector import BufferParams, IntraParams
@@ -274,3 +303,31 @@ def test_detect_default_display_is_the_reports_primary(tmp_path, edge_events):
     assert read_detection(tmp_path / "o" / "detection.h5").metadata["display"] == PRIMARY_DISPLAY
     help_text = " ".join(CliRunner().invoke(detect, ["--help"]).output.split())
     assert "Default predecessor" in help_text and "primary display" in help_text
+
+
+def test_detect_streams_chunks_with_the_library_result(tmp_path, edge_events, monkeypatch):
+    """Chunked estimation + edge image in one pass (small chunks here) gives the library's bytes:
+    detect()'s lifetimes and keep mask, edge_frames' maps; --no-png writes no PNG; --compress the same data."""
+    import evedge.detector.cli as cli_mod
+    from evedge.detector import edge_frames
+    from evedge.io.detection import read_detection
+
+    monkeypatch.setattr(cli_mod, "_CHUNK", 97)
+    ev, _ = edge_events(24, 20, 700, 0.4, n_edges=3, spacing_px=7, subpixel_px=0.3, jitter_frac=0.05, rng=4)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    size = SensorSize(24, 20)
+    times = [int(v) for v in np.linspace(int(ev["t"][0]) - 10, int(ev["t"][-1]) + 10, 9)]
+    want = run_detect(ev, size)
+    want_frames = edge_frames(ev[want.kept], want.lifetimes[want.kept], size, times, display="predecessor")
+    for extra in ((), ("--no-png",), ("--compress",)):
+        out = tmp_path / ("o" + "".join(extra))
+        res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "24x20", "--quiet", "--times",
+                                          ",".join(map(str, times)), *extra])
+        assert res.exit_code == 0, res.output
+        d = read_detection(out / "detection.h5")
+        for name in ("lifetime_us", "vx_px_s", "vy_px_s", "valid"):
+            assert d.lifetimes[name].tobytes() == want.lifetimes[name].tobytes(), name
+        np.testing.assert_array_equal(d.lifetimes["kept"], want.kept)
+        np.testing.assert_array_equal(d.edges.images, want_frames)
+        assert (out / "edges").exists() == ("--no-png" not in extra)

@@ -25,10 +25,11 @@ def random_lifetimes(n, rng):
     return out
 
 
-def reference_frame(events, lifetimes, size, T, clear_behind, invalid):
+def reference_frame(events, lifetimes, size, T, clear_behind, invalid, burst=0.0):
     """Replay every event with t <= T in pure Python."""
     last = {}
     expiry = {}
+    burst_state = {}  # pix -> (start, lifetime, polarity) of the newest valid event
     dirs = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)]
     for e, r in zip(events, lifetimes):
         t = int(e["t"])
@@ -39,7 +40,13 @@ def reference_frame(events, lifetimes, size, T, clear_behind, invalid):
             if invalid == "clear":
                 last[pix], expiry[pix] = t, float(t)
             continue
-        last[pix], expiry[pix] = t, t + float(r["lifetime_us"])
+        start = t
+        if burst > 0:
+            b_start, b_lt, b_pol = burst_state.get(pix, (None, math.nan, None))
+            if b_pol == bool(e["p"]) and t - last[pix] <= burst * b_lt:
+                start = b_start
+            burst_state[pix] = (start, float(r["lifetime_us"]), bool(e["p"]))
+        last[pix], expiry[pix] = t, start + float(r["lifetime_us"])
         if clear_behind:
             d = int(math.floor(math.atan2(-r["vy_px_s"], -r["vx_px_s"]) / (math.pi / 4) + 0.5)) % 8
             q = (pix[0] + dirs[d][0], pix[1] + dirs[d][1])
@@ -53,14 +60,15 @@ def reference_frame(events, lifetimes, size, T, clear_behind, invalid):
 
 @pytest.mark.parametrize("clear_behind", [False, True])
 @pytest.mark.parametrize("invalid", ["ignore", "clear"])
-def test_matches_reference(random_events, clear_behind, invalid):
+@pytest.mark.parametrize("burst", [0.0, 1.0, 3.0])
+def test_matches_reference(random_events, clear_behind, invalid, burst):
     ev = random_events(500, S.width, S.height, duration_us=20_000, rng=4)
     lt = random_lifetimes(ev.size, 5)
     times = np.array([15_000, 0, 5_000, 19_999, 7_777, int(ev["t"][100]), 30_000])
-    frames = edge_frames(ev, lt, S, times, clear_behind=clear_behind, invalid=invalid)
+    frames = edge_frames(ev, lt, S, times, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst)
     assert frames.shape == (times.size, *S.shape)
     for f, T in zip(frames, times):
-        np.testing.assert_array_equal(f, reference_frame(ev, lt, S, T, clear_behind, invalid))
+        np.testing.assert_array_equal(f, reference_frame(ev, lt, S, T, clear_behind, invalid, burst))
     assert frames.any() and not frames.all()
 
 
@@ -144,3 +152,27 @@ def test_image_at_refuses_non_finite_instants():
     for bad in (float("nan"), np.float64("inf"), -np.inf):
         with pytest.raises(ValueError, match="t_us must be finite"):
             img.image_at(bad)
+
+
+def test_burst_aware_expiry_counts_from_the_burst_s_first_event():
+    """A pixel fires a burst of 3 events 100 us apart (lifetime 1000 us each), then a new burst 5000 us later.
+    Paper display: alive until 200 + 1000; burst-aware: until 0 + 1000; the later burst starts afresh."""
+    ev = make_events([2] * 5, [3] * 5, [0, 100, 200, 5000, 5300], [True] * 5)
+    lt = empty_lifetimes(5)
+    lt["valid"] = True
+    lt["lifetime_us"] = 1000.0
+    lt["vx_px_s"], lt["vy_px_s"] = 1000.0, 0.0
+    times = [999, 1000, 1199, 1200, 5999, 6000, 6299, 6300]
+    paper = edge_frames(ev, lt, S, times)[:, 3, 2]
+    burst = edge_frames(ev, lt, S, times, burst_lifetimes=1.0)[:, 3, 2]
+    assert paper.tolist() == [True, True, True, False, True, True, True, False]
+    assert burst.tolist() == [True, False, False, False, True, False, False, False]
+    # an event of the other polarity starts a burst (at 100 us) that the third event continues
+    ev["p"][1:3] = False
+    other = edge_frames(ev, lt, S, [1099, 1100], burst_lifetimes=1.0)[:, 3, 2]
+    assert other.tolist() == [True, False]
+
+
+def test_burst_lifetimes_refuses_a_negative_value():
+    with pytest.raises(ValueError, match="burst_lifetimes"):
+        EdgeImage(S, burst_lifetimes=-1)

@@ -55,9 +55,36 @@ def ref_two_means(dts):
     return [lab == cur for lab in labels]
 
 
+def ref_linkage(points, ratio, min_gap, min_points):
+    """Single linkage in time from the current event (dt = 0); forced while the cluster fixes no plane."""
+    dts = [q[2] for q in points]
+    lo = hi = 0.0
+    big = min_gap
+
+    def degenerate():
+        kept = [(q[0], q[1]) for q in points if lo <= q[2] <= hi]
+        spread = any(a[0] * b[1] - a[1] * b[0] != 0 for a in kept for b in kept)
+        return len(kept) + 1 < min_points or not spread
+
+    while True:
+        below = max([v for v in dts if v < lo], default=-math.inf)
+        above = min([v for v in dts if v > hi], default=math.inf)
+        gap = min(lo - below, above - hi)
+        if not math.isfinite(gap) or not (gap <= ratio * big or degenerate()):
+            break
+        big = max(big, gap)
+        if lo - below <= above - hi:
+            lo = below
+        else:
+            hi = above
+    return [lo <= v <= hi for v in dts]
+
+
 def ref_fit(points, p: IntraParams, seed, g, delta):
     """points: list of (dx, dy, dt). Returns (ok, a, b, inlier flags of the points)."""
     kept = ref_two_means([q[2] for q in points])
+    if p.split_gap_ratio > 0:
+        kept = ref_linkage(points, p.split_gap_ratio, p.inlier_threshold_us, p.min_points)
     res = ref_ransac(points, kept, p, seed, g, delta)
     if res == "degenerate" and p.fallback_all_points:
         res = ref_ransac(points, [True] * len(points), p, seed, g, delta)
@@ -119,37 +146,70 @@ def ref_ransac(points, kept, p, seed, g, delta):
     a, b = sol
     if a * a + b * b == 0:
         return "flat"
+    if p.event_on_plane and p.refit_intercept and not ref_event_on_plane(pts[1:], a, b, p, delta):
+        return "off plane"
     return True, float(a), float(b), flags
 
 
+def ref_event_on_plane(past, a_all, b_all, p, delta):
+    """The current event (origin) against the least-squares plane of the past inliers alone."""
+    if len(past) < 3:
+        return False
+    X = np.array([[q[0], q[1], 1.0] for q in past], float)
+    T = np.array([q[2] for q in past], float)
+    xy = X[:, :2] - X[:, :2].mean(0)
+    if np.linalg.matrix_rank(xy, tol=1e-6) < 2:
+        return False
+    (a, b, c), *_ = np.linalg.lstsq(X, T, rcond=None)
+    r = max(0.0, abs(c) - delta * (abs(a) + abs(b)))
+    return r <= p.event_on_plane * (p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b))
+
+
 def ref_stream(events, size, p: IntraParams):
-    """Whole estimator on a list of events with a dict SAE."""
+    """Whole estimator on a list of events with a dict SAE (burst grouping, start-up and border rules)."""
     sae = {}
     prev = {}  # (plane, x, y) -> (time, lifetime or nan, polarity) of the pixel's previous event
     half = p.window_size // 2
     out = []
+    burst = p.burst_lifetimes
     for g, e in enumerate(events):
-        x, y, t, pol = int(e["x"]), int(e["y"]), int(e["t"]), bool(e["p"])
+        x, y, t_ev, pol = int(e["x"]), int(e["y"]), int(e["t"]), bool(e["p"])
         plane = pol if p.per_polarity else 0
-        t_ev = t
-        pt, plt, ppol = prev.get((plane, x, y), (0, math.nan, None))
-        if p.burst_lifetimes > 0 and ppol == pol and t - pt <= p.burst_lifetimes * plt:
-            t = sae[(plane, x, y)]  # same burst: fitted at the burst's first time
+        key = (plane, x, y)
+        pt, plt, ppol = prev.get(key, (0, math.nan, None))
+        cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt
+        trial = p.burst_startup and burst > 0 and not cont and ppol == pol and math.isnan(plt)
+
+        def fit(t):
+            pts = []
+            for oy in range(-half, half + 1):
+                for ox in range(-half, half + 1):
+                    q = (plane, x + ox, y + oy)
+                    if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
+                        pts.append((float(ox), float(oy), float(sae[q] - t)))
+            return ref_fit(pts, p, p.seed, g, p.delta_px)[:3]
+
+        if cont or trial:
+            ok, a, b = fit(sae[key])  # fitted at the burst's first time
+            if trial:
+                if ok and t_ev - pt <= burst * math.hypot(a, b):
+                    cont = True
+                else:
+                    sae[key] = t_ev
+                    ok, a, b = fit(t_ev)
         else:
-            sae[(plane, x, y)] = t
-        pts = []
-        for oy in range(-half, half + 1):
-            for ox in range(-half, half + 1):
-                q = (plane, x + ox, y + oy)
-                if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
-                    pts.append((float(ox), float(oy), float(sae[q] - t)))
-        ok, a, b, _ = ref_fit(pts, p, p.seed, g, p.delta_px)
-        if ok:
+            sae[key] = t_ev
+            ok, a, b = fit(t_ev)
+        lt = math.sqrt(a * a + b * b) if ok else math.nan
+        b_px = p.border_px
+        inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
+        if ok and inside:
             g2 = a * a + b * b
-            out.append((math.sqrt(g2), a / g2 * 1e6, b / g2 * 1e6, True))
+            out.append((lt, a / g2 * 1e6, b / g2 * 1e6, True))
         else:
             out.append((math.nan, math.nan, math.nan, False))
-        prev[(plane, x, y)] = (t_ev, out[-1][0], pol)
+        keep = p.burst_startup and cont and not ok  # an invalid event inside a burst keeps the burst's lifetime
+        prev[key] = (t_ev, plt if keep else lt, pol)
     return np.array(out, dtype=LIFETIME_DTYPE)
 
 
@@ -187,7 +247,9 @@ def random_windows(n, side, rng):
     "params",
     [IntraParams(), IntraParams(stop_probability=1.0, max_trials=7, min_inliers=3, min_points=3,
                                 fallback_all_points=False),
-     IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0)],
+     IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
+     IntraParams(event_on_plane=1.0),
+     IntraParams(split_gap_ratio=3.0, event_on_plane=1.0)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
@@ -226,7 +288,7 @@ def test_two_means_reference_properties():
 def test_stream_matches_reference(random_events, per_polarity):
     size = SensorSize(9, 7)
     ev = random_events(400, size.width, size.height, duration_us=30_000, rng=3)
-    params = IntraParams(per_polarity=per_polarity, min_inliers=4, min_points=4, seed=5)
+    params = IntraParams(per_polarity=per_polarity, min_inliers=4, min_points=4, seed=5, border_px=1)
     got = estimate_lifetimes(ev, size, params)
     want = ref_stream(ev, size, params)
     assert_lifetimes_close(got, want)
@@ -453,3 +515,144 @@ def test_seed_range_is_a_clear_error_everywhere():
         fit_window([["a", "b", "c"]] * 3)
     with pytest.raises(TypeError, match="windows: expected numbers"):
         fit_windows([[["a"] * 3] * 3])
+
+
+# ---- robustness options (issue 11): known answers ----------------------------------------------
+
+
+def _ramp_with_stale_levels(lifetime_us=1000.0, period_us=20_000.0, current_cols=3):
+    """5x5 window of a vertical edge moving along +x (slope ``a = lifetime``, ``b = 0``).
+
+    Columns ``dx <= 0`` hold the current passage (``dt = dx * lifetime``, the last
+    ``current_cols`` columns); the columns ahead skipped it and hold two stale
+    levels, one and two periods older (``dx = +1``: one period, ``dx = +2``: two).
+    """
+    w = np.full((5, 5), np.nan)
+    for col in range(5):
+        dx = col - 2
+        if dx <= 0 and dx > -current_cols:
+            w[:, col] = dx * lifetime_us
+        elif dx == 1:
+            w[:, col] = dx * lifetime_us - period_us
+        elif dx == 2:
+            w[:, col] = dx * lifetime_us - 2 * period_us
+    return w
+
+
+def test_gap_split_drops_the_middle_stale_level():
+    """The paper's 2-means (centroids: window minimum, current time) keeps the middle stale level; the gap
+    split drops it and the lifetime is the truth."""
+    w = _ramp_with_stale_levels()
+    # the paper's split keeps the column one period old (dt = -19000) with the current ones
+    keep = ref_two_means([v for v in w.ravel()[np.arange(25) != 12] if not np.isnan(v)])
+    assert not all(keep) and sum(keep) == 14 + 5  # 3 current columns (less the centre) + the middle stale one
+    fit = fit_window(w, IntraParams(split_gap_ratio=1.0, event_on_plane=1.0))
+    assert fit.ok
+    assert fit.lifetime_us == pytest.approx(1000.0, rel=1e-9)
+    assert not fit.inliers[:, 3:].any()  # no stale pixel is an inlier
+
+
+def test_gap_split_keeps_a_clean_ramp_whole():
+    """Without stale levels there is no clear gap: the split changes nothing (same fit as the paper's)."""
+    w = _ramp_with_stale_levels(current_cols=3)
+    w[:, 3:] = np.nan
+    a = fit_window(w, IntraParams())
+    b = fit_window(w, IntraParams(split_gap_ratio=1.0))
+    assert a.ok and b.ok and a.lifetime_us == pytest.approx(1000.0) and b.lifetime_us == pytest.approx(1000.0)
+
+
+def test_event_on_plane_rejects_an_event_off_its_neighbours_plane():
+    """An isolated event 30 lifetimes after the edge passed its neighbours: the neighbours fit a clean plane
+    (RANSAC through the event finds one with the delta slack at a steep slope), but the event is not on it."""
+    w = _ramp_with_stale_levels(current_cols=3)
+    w[:, 3:] = np.nan
+    w -= 30_000.0
+    w[2, 2] = 0.0  # the current event, long after
+    assert not fit_window(w, IntraParams(event_on_plane=1.0)).ok
+    w[2, 2] = -30_000.0  # on the plane: accepted
+    assert fit_window(w, IntraParams(event_on_plane=1.0)).ok
+
+
+def test_event_on_plane_noise_only_stream():
+    """Background activity only (5 Hz per pixel, 1 s, no edge) through the pipeline (buffer on): the check
+    leaves fewer noise events with a lifetime (12.7 % -> 8.1 % for this stream)."""
+    rng = np.random.default_rng(3)
+    n = 5000
+    ev = make_events(rng.integers(0, 32, n), rng.integers(0, 32, n), np.sort(rng.integers(0, 1_000_000, n)),
+                     rng.random(n) < 0.5)
+    size = SensorSize(32, 32)
+    from evedge.detector.pipeline import detect
+
+    off = detect(ev, size, params=IntraParams()).lifetimes["valid"]
+    on = detect(ev, size, params=IntraParams(event_on_plane=1.0)).lifetimes["valid"]
+    assert on.mean() < 0.10 < off.mean()
+
+
+def _burst_edge(width=24, height=24, speed=250.0, angle=0.4, per_pixel=3, jitter=0.08, rng=1):
+    """One straight edge whose passage makes a burst of ``per_pixel`` events in every pixel, at edge positions
+    -1/3, 0, +1/3 px from its centre, each with Gaussian time jitter of ``jitter`` lifetimes."""
+    rng = np.random.default_rng(rng)
+    ys, xs = np.mgrid[0:height, 0:width]
+    s = (xs * math.cos(angle) + ys * math.sin(angle)).ravel()
+    lifetime = 1e6 / speed
+    phases = [(j + 0.5) / per_pixel - 0.5 for j in range(per_pixel)]
+    t = np.concatenate([(s - s.min() + ph + 1.0 + rng.normal(0, jitter, s.size)) * lifetime for ph in phases])
+    x = np.tile(xs.ravel(), per_pixel)
+    y = np.tile(ys.ravel(), per_pixel)
+    order = np.argsort(t, kind="stable")
+    t = np.rint(t[order]).astype(np.int64)
+    return make_events(x[order], y[order], t, np.ones(t.size, bool)), lifetime
+
+
+def test_burst_startup_on_the_first_passage():
+    """The only passage of a jittered burst edge (no history before it): with the start-up rule, bursts whose
+    earlier event got no estimate still group, and fewer estimates are more than 20 % off (measured:
+    11.6 % -> 6.3 %, estimated 95.9 % -> 96.9 %)."""
+    ev, lifetime = _burst_edge()
+    size = SensorSize(24, 24)
+    res = {}
+    for startup in (False, True):
+        out = estimate_lifetimes(ev, size, IntraParams(burst_startup=startup))
+        off = np.abs(out["lifetime_us"][out["valid"]] / lifetime - 1) > 0.2
+        res[startup] = (off.sum() / ev.size, out["valid"].mean())
+    assert res[True][0] < 0.67 * res[False][0]
+    assert res[True][1] >= res[False][1]
+
+
+def test_burst_startup_streaming_equals_one_shot():
+    ev, _ = _burst_edge()
+    p = IntraParams(burst_startup=True, split_gap_ratio=3.0, event_on_plane=1.0)
+    want = estimate_lifetimes(ev, SensorSize(24, 24), p)
+    est = IntraPixelLifetime(SensorSize(24, 24), p)
+    parts = [est.process(ev[i:i + 97]) for i in range(0, ev.size, 97)]
+    assert np.concatenate(parts).tobytes() == want.tobytes()
+
+
+def test_linkage_split_keeps_a_jittered_ramp_whole():
+    """Behind an axis-aligned edge the levels 0, -L, -2L: timing jitter around the 2-means midpoint (-L)
+    cuts the middle column in two for the paper's split; the linkage split keeps all three columns."""
+    w = np.full((5, 5), np.nan)
+    jitter = np.array([-40.0, 30.0, -25.0, 45.0, -10.0])
+    w[:, 2] = 0.0
+    w[:, 1] = -1000.0 + jitter
+    w[:, 0] = -2000.0
+    w[2, 2] = 0.0
+    past = [v for v in w.ravel()[np.arange(25) != 12] if not np.isnan(v)]
+    assert 0 < sum(ref_two_means(past)) < 14  # the paper's split drops part of the ramp
+    p = IntraParams(split_gap_ratio=3.0, stop_probability=1.0, max_trials=40)
+    fit = fit_window(w, p)
+    assert fit.ok and fit.inliers[:, :3].sum() >= 14
+    assert fit.lifetime_us == pytest.approx(1000.0, rel=0.03)
+
+
+def test_border_px_reports_no_estimate_near_the_edge_and_changes_nothing_else():
+    """Events closer than border_px to the sensor edge get no estimate; every other output is unchanged
+    (the border events' fits still set their pixels' burst state)."""
+    ev, _ = _burst_edge()
+    size = SensorSize(24, 24)
+    a = estimate_lifetimes(ev, size, IntraParams())
+    b = estimate_lifetimes(ev, size, IntraParams(border_px=2))
+    near = (ev["x"] < 2) | (ev["y"] < 2) | (ev["x"] >= 22) | (ev["y"] >= 22)
+    assert a["valid"][near].any() and not b["valid"][near].any()
+    assert np.isnan(b["lifetime_us"][near]).all()
+    assert a[~near].tobytes() == b[~near].tobytes()

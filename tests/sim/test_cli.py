@@ -99,3 +99,47 @@ def test_an_existing_output_is_replaced_only_with_overwrite(tmp_path):
     assert _run(["-o", str(folder), "--duration", "0.005", "--format", "ecd"]).exit_code == 0
     res = _run(["-o", str(folder), "--duration", "0.005", "--format", "ecd"])
     assert res.exit_code == 1 and "pass --overwrite" in res.output
+
+
+def test_simulate_sensor_preset(tmp_path):
+    out = tmp_path / "g.h5"
+    res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "-o", str(out), "--duration", "0.0005",
+                                        "--sensor", "gen4", "--frame-rate", "0", "--quiet"])
+    assert res.exit_code == 0, res.output
+    assert "1280x720" in res.output
+    res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "-o", str(out), "--sensor", "gen9"])
+    assert res.exit_code != 0 and "unknown sensor preset 'gen9'" in res.output and "gen4" in res.output
+
+
+def test_simulate_video_and_frames(tmp_path):
+    import cv2
+
+    x = np.arange(32)
+    frames = [np.clip(40 + 180 * ((x[None, :] - 3 * k) % 16 < 8), 0, 255).astype(np.uint8).repeat(12, 0)
+              for k in range(6)]
+    video = tmp_path / "v.avi"
+    wr = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"FFV1"), 100.0, (32, 12), isColor=False)
+    for f in frames:
+        wr.write(f)
+    wr.release()
+    out = tmp_path / "v.h5"
+    res = CliRunner().invoke(simulate, ["--video", str(video), "-o", str(out), "--contrast", "0.3",
+                                        "--refractory-us", "50", "--upsample", "2", "--quiet"])
+    assert res.exit_code == 0, res.output
+    rec = read_events(out)
+    assert rec.events.shape[0] > 100 and (rec.sensor_size.width, rec.sensor_size.height) == (32, 12)
+    assert rec.events["t"].max() <= 50000 and "t_ns" in rec.truth.dtype.names
+    folder = tmp_path / "f"
+    folder.mkdir()
+    for k, f in enumerate(frames):
+        cv2.imwrite(str(folder / f"{k:03d}.png"), f)
+    res = CliRunner().invoke(simulate, ["--frames", str(folder), "-o", str(tmp_path / "f.h5"), "--rate", "100",
+                                        "--sensor", "dvs128", "--quiet"])
+    assert res.exit_code == 0, res.output
+    assert "128x128" in res.output
+    res = CliRunner().invoke(simulate, ["--frames", str(folder), "-o", str(tmp_path / "g.h5"), "--quiet"])
+    assert res.exit_code != 0 and "no frame times" in res.output
+    res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "--video", str(video), "-o", str(out)])
+    assert res.exit_code != 0 and "exactly one of SCENE" in res.output
+    res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "--rate", "3", "-o", str(out)])
+    assert res.exit_code != 0 and "--rate applies to --video/--frames only" in res.output

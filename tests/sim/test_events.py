@@ -154,19 +154,31 @@ def test_threshold_mismatch_is_per_pixel_and_seeded():
     assert a.cpos[0] != a.cneg[0]
 
 
-def _stripes_events(stripes_dict, lam):
+def _stripes_events(stripes_dict, lam, crossing_times="linear", sampling="auto"):
     d = stripes_dict(width=24, height=6, duration_s=0.15, velocity_px_s=[150.0, 40.0], angle_deg=20.0)
-    return simulate(parse_scene(d, "lam.toml"), progress=False, frame_rate_hz=0, lambda_=lam).events
+    d["events"].update(crossing_times=crossing_times, sampling=sampling)
+    return simulate(parse_scene(d, "lam.toml"), progress=False, frame_rate_hz=0, lambda_=lam)
 
 
-def test_halving_lambda_barely_changes_events(stripes_dict):
-    """Stated tolerance: total count within 0.5%; the same count for >= 99% of the
+def test_halving_lambda_does_not_move_exact_times(stripes_dict):
+    """Exact crossing times do not depend on the sampling: the same events, times within 1 ns."""
+    a = _stripes_events(stripes_dict, 0.5, "auto", "verified")
+    b = _stripes_events(stripes_dict, 0.25, "auto", "verified")
+    assert a.metadata["n_samples"] < b.metadata["n_samples"]
+    assert a.events.tobytes() == b.events.tobytes()
+    assert np.abs(a.truth["t_ns"] - b.truth["t_ns"]).max() <= 1
+
+
+def test_halving_lambda_barely_changes_linear_events(stripes_dict):
+    """ESIM's linear interpolation (crossing_times = "linear").
+
+    Stated tolerance: total count within 0.5%; the same count for >= 99% of the
     (pixel, polarity) pairs; of their matched timestamps 95% within 5 us, the mean within
     6 us and all within 300 us. (The tail is the last crossing of a transition, at the flat
     end of the coverage curve, where a small log error is a large time error; it halves
     with lambda: first-order convergence of the linear interpolation.)"""
-    a = _stripes_events(stripes_dict, 0.5)
-    b = _stripes_events(stripes_dict, 0.25)
+    a = _stripes_events(stripes_dict, 0.5).events
+    b = _stripes_events(stripes_dict, 0.25).events
     assert abs(a.shape[0] - b.shape[0]) <= 0.005 * a.shape[0]
     keys_a = a["y"].astype(np.int64) * 100000 + a["x"].astype(np.int64) * 2 + a["p"]
     keys_b = b["y"].astype(np.int64) * 100000 + b["x"].astype(np.int64) * 2 + b["p"]

@@ -1,0 +1,128 @@
+"""``evedge detect`` end to end against its kernels: throughput, peak memory, cold start.
+
+Input: ``stripes.mat`` repeated ``--copies`` times one after the other (30:
+10.2 M events, 36 s of a 128x128 recording), written once as an HDF5 event
+file in a temporary folder. Measured in one run:
+
+* the kernels in this process: buffer (``filter_events``) + estimator
+  (``estimate_lifetimes`` on the kept events) + edge frames at 30 fps
+  (``edge_frames``), CPU time;
+* ``evedge detect FILE -o OUT --no-png`` (and once with its PNGs) as a
+  subprocess with a warm numba cache: CPU time (user + system) and peak
+  resident memory (``ru_maxrss``); the ratio kernels / CLI is the share of
+  the CLI's time spent in the detector itself (target >= 0.8); memory per
+  event = (peak - the peak of the same command on a 1000-event file) / events
+  (target <= 64 bytes);
+* the cold start: the same command on the first ``--cold-events`` events (1 M
+  and 10 M) with
+  an empty numba cache (``NUMBA_CACHE_DIR`` set to a fresh folder) against the
+  same with that cache filled (wall time; target cold <= 2x warm).
+
+The machine is shared: the load average is printed. Run:
+``.venv/bin/python benchmarks/bench_cli.py [--copies 30] [--cold-events 1000000 10000000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_detector import load_stripes  # noqa: E402
+
+from evedge.detector import edge_frames, estimate_lifetimes, filter_events  # noqa: E402
+from evedge.events import Recording  # noqa: E402
+from evedge.io.hdf5 import write_recording  # noqa: E402
+
+EVEDGE = Path(sys.executable).with_name("evedge")
+
+
+def repeated(events, copies):
+    span = int(events["t"][-1]) - int(events["t"][0]) + 1000
+    parts = []
+    for c in range(copies):
+        e = events.copy()
+        e["t"] += c * span
+        parts.append(e)
+    return np.concatenate(parts)
+
+
+def run_cli(src: Path, out: Path, *extra, env=None):
+    """``evedge detect`` as a child; (wall s, CPU s, peak RSS bytes) of that command alone.
+
+    Through ``/usr/bin/time``: a child forked from this (large) process would count
+    this process's pages in its own peak RSS.
+    """
+    w0 = time.perf_counter()
+    proc = subprocess.run(["/usr/bin/time", "-f", "%e %U %S %M", str(EVEDGE), "detect", str(src), "-o", str(out),
+                           "--quiet", *extra], env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - w0
+    if proc.returncode != 0:
+        raise SystemExit(f"evedge detect failed: {proc.stderr}")
+    _, user, system, max_kb = proc.stderr.strip().splitlines()[-1].split()
+    return wall, float(user) + float(system), int(max_kb) * 1024
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--copies", type=int, default=30)
+    ap.add_argument("--cold-events", type=int, nargs="+", default=[1_000_000, 10_000_000])
+    args = ap.parse_args(argv)
+    data = load_stripes()
+    if data is None:
+        return
+    ev, size = data
+    big = repeated(ev, args.copies)
+    n = big.size
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs; {n:,} events ({args.copies} x stripes.mat)")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        src = tmp / "events.h5"
+        write_recording(src, Recording(big, size))
+        tiny = tmp / "tiny.h5"
+        write_recording(tiny, Recording(big[:1000], size))
+
+        # the kernels, in this process (warm-up on a slice first: compilation excluded)
+        frame_t = np.rint(np.arange(int(big["t"][0]) + 1e6 / 30, int(big["t"][-1]) + 1e6 / 60, 1e6 / 30)).astype(np.int64)
+        kept = filter_events(big[:5000], size)
+        estimate_lifetimes(big[:5000][kept], size)
+        c0 = time.process_time()
+        kept = filter_events(big, size)
+        sub = big[kept]
+        lt = estimate_lifetimes(sub, size)
+        edge_frames(sub, lt, size, frame_t, display="predecessor")
+        kernels = time.process_time() - c0
+        del sub, lt, kept
+        print(f"kernels (buffer + estimator + {frame_t.size} edge frames), in process: CPU {kernels:.2f} s "
+              f"({n / kernels / 1e6:.2f} M ev/s)")
+
+        run_cli(tiny, tmp / "o0")  # fills the numba cache if needed
+        _, _, base_rss = run_cli(tiny, tmp / "o0")
+        for label, extra in (("--no-png", ("--no-png",)), ("with PNGs", ())):
+            wall, cpu, rss = run_cli(src, tmp / "o1", *extra)
+            print(f"evedge detect {label:9s}: wall {wall:.2f} s, CPU {cpu:.2f} s ({n / cpu / 1e6:.2f} M ev/s); "
+                  f"kernels / CLI = {kernels / cpu:.2f} (target >= 0.8); peak RSS {rss / 2**20:.0f} MiB, "
+                  f"{(rss - base_rss) / n:.1f} B/event above the {base_rss / 2**20:.0f} MiB of a 1000-event run "
+                  f"(target <= 64)")
+
+        for m in args.cold_events:
+            cold_src = tmp / f"cold{m}.h5"
+            write_recording(cold_src, Recording(big[:m], size))
+            env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / f"numba_cache{m}")}
+            cold = run_cli(cold_src, tmp / "o2", "--no-png", env=env)
+            warm = run_cli(cold_src, tmp / "o3", "--no-png", env=env)
+            print(f"cold start on {min(n, m):,} events: empty numba cache wall {cold[0]:.2f} s (CPU {cold[1]:.2f}), "
+                  f"warm {warm[0]:.2f} s (CPU {warm[1]:.2f}): cold / warm = {cold[0] / warm[0]:.2f} wall, "
+                  f"{cold[1] / warm[1]:.2f} CPU (target <= 2)")
+    print(f"load average {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,118 @@
+"""Streaming latency of the detector: 1 ms chunks of a recording, fed at its recorded rate.
+
+The streaming :class:`evedge.detector.Detector` (event buffer -> intra-pixel
+estimator -> edge image, one core) gets the events of each 1 ms of the
+recording as one chunk, then ``advance_to`` the chunk's end (what a driver
+with a clock does). Per chunk we time the processing (wall clock and the
+thread's CPU time) and print the p50 / p99 latencies, the sustained rate
+(events / total processing time) and whether it keeps up: sustained rate above
+the input rate and p99 wall latency under the chunk length.
+
+Input: ``stripes.mat`` (DVS128, ~0.28 M events/s) as recorded; the same
+recording with its time axis divided by ``--copies`` (the same events on the
+same 128x128 sensor at ``copies`` times the rate: ~2.5 M events/s for 9, the
+figure the detector must keep up with on one core; the scene moves 9x faster,
+so lifetimes are 9x shorter); and the recording tiled ``--copies`` times side
+by side on a larger sensor (384x384 for 9; each copy shifted in time by a few
+ms so they do not fire in lockstep): the same scene at the same speed and
+``copies`` times the rate, with a per-pixel state 9x larger (it no longer fits
+in the core's cache: the cost of a larger sensor). The first 50 chunks are
+a warm-up (compilation, caches) and are not counted. The machine is shared:
+the load average is printed with the figures, CPU latencies are the robust
+ones, wall latencies include preemption by other jobs.
+
+Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_detector import load_stripes  # noqa: E402
+
+from evedge.detector import Detector  # noqa: E402
+from evedge.events import EVENT_DTYPE, SensorSize  # noqa: E402
+
+WARMUP_CHUNKS = 50
+
+
+def tiled(events: np.ndarray, size: SensorSize, copies: int, rng=0):
+    """``copies`` copies of ``events`` on a grid of sensors, each shifted by up to 5 ms; time-sorted."""
+    side = int(np.ceil(np.sqrt(copies)))
+    g = np.random.default_rng(rng)
+    parts = []
+    for c in range(copies):
+        e = events.copy()
+        e["x"] += (c % side) * size.width
+        e["y"] += (c // side) * size.height
+        e["t"] += int(g.integers(0, 5000))
+        parts.append(e)
+    out = np.concatenate(parts)
+    out = out[np.argsort(out["t"], kind="stable")]
+    return out, SensorSize(side * size.width, side * size.height)
+
+
+def stream(events: np.ndarray, size: SensorSize, chunk_us: int):
+    """Per-chunk latencies (wall, CPU) in seconds and the event counts, after the warm-up."""
+    det = Detector(size)
+    t = events["t"]
+    t0 = int(t[0])
+    edges = np.arange(t0, int(t[-1]) + chunk_us, chunk_us)
+    cuts = np.searchsorted(t, edges)
+    wall, cpu, counts = [], [], []
+    for i in range(len(edges) - 1):
+        chunk = events[cuts[i]:cuts[i + 1]]
+        w0, c0 = time.perf_counter(), time.thread_time()
+        det.process(chunk)
+        det.advance_to(int(edges[i + 1]))
+        w1, c1 = time.perf_counter(), time.thread_time()
+        if i >= WARMUP_CHUNKS:
+            wall.append(w1 - w0)
+            cpu.append(c1 - c0)
+            counts.append(chunk.size)
+    det.flush()
+    return np.array(wall), np.array(cpu), np.array(counts)
+
+
+def report(label, events, size, chunk_us):
+    span_s = (int(events["t"][-1]) - int(events["t"][0])) / 1e6
+    rate = events.size / span_s
+    load = os.getloadavg()[0]
+    wall, cpu, counts = stream(events, size, chunk_us)
+    n = counts.sum()
+    keeps = n / wall.sum() >= rate and np.quantile(wall, 0.99) < chunk_us * 1e-6
+    print(f"{label:34s} {size.width}x{size.height} {rate / 1e6:5.2f} M ev/s in, {counts.mean():7.0f} ev/chunk | "
+          f"latency wall p50 {np.median(wall) * 1e6:6.0f} p99 {np.quantile(wall, 0.99) * 1e6:6.0f} us, "
+          f"CPU p50 {np.median(cpu) * 1e6:6.0f} p99 {np.quantile(cpu, 0.99) * 1e6:6.0f} us | sustained "
+          f"{n / wall.sum() / 1e6:5.2f} M ev/s wall, {n / cpu.sum() / 1e6:5.2f} CPU | keeps up (wall): "
+          f"{'yes' if keeps else 'no'} | load {load:.2f}->{os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--copies", type=int, default=9, help="copies of stripes.mat side by side (rate x copies)")
+    ap.add_argument("--chunk-us", type=int, default=1000)
+    args = ap.parse_args(argv)
+    data = load_stripes()
+    if data is None:
+        return
+    events, size = data
+    assert events.dtype == EVENT_DTYPE
+    print(f"chunks of {args.chunk_us} us, one core, first {WARMUP_CHUNKS} chunks not counted")
+    report("stripes.mat as recorded", events, size, args.chunk_us)
+    fast = events.copy()
+    fast["t"] = fast["t"][0] + (fast["t"] - fast["t"][0]) // args.copies
+    report(f"stripes.mat, time / {args.copies}", fast, size, args.chunk_us)
+    big, big_size = tiled(events, size, args.copies)
+    report(f"stripes.mat x {args.copies} (tiled)", big, big_size, args.chunk_us)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,414 @@
+"""numba kernels: exact pixel intensities at arbitrary times, and the root finder of the crossing times.
+
+The planar renderers draw whole images at the sample times; between two
+samples the converter needs a pixel's intensity at any instant to solve for
+the exact moment its log intensity crosses a threshold. These kernels
+evaluate the closed-form pixel-area intensity of one pixel at one time per
+entry (the same coverage formulas as :mod:`evedge.sim._coverage`: stripes by
+the projected-square CDF, polygons by the signed area of each edge in the pixel's row band,
+disks by the circle/triangle decomposition), and :func:`_root_step`
+advances a bracketed regula falsi (Anderson-Bjorck variant) on
+``f(t) = I(t) - (exp(level) - eps)`` for many crossings at once.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._coverage import _HALF_DIAG, _disk_box_area, _stripe_dark_fraction
+from ._events import _half_normal
+
+
+@njit(cache=True)
+def _stripes_at(pix, t, width, layer_of_row, nx, ny, vx, vy, phase, period, duty, dark, light, background, out):
+    """Intensity of flat pixel ``pix[j]`` at time ``t[j]`` for a :class:`~evedge.sim.planar.StripesRenderer`.
+
+    Per layer ``k``: unit normal ``(nx, ny)[k]``, velocity ``(vx, vy)[k]``
+    and the stripe parameters; ``layer_of_row[y]`` is the layer of row ``y``
+    (-1: background). The arithmetic is that of
+    :func:`~evedge.sim._coverage._render_stripes` term by term, so at a sample
+    time the value is the rendered one.
+    """
+    for j in range(pix.shape[0]):
+        i = pix[j]
+        y = i // width
+        x = i - y * width
+        k = layer_of_row[y]
+        if k < 0:
+            out[j] = background
+            continue
+        offset = nx[k] * vx[k] * t[j] + ny[k] * vy[k] * t[j] + phase[k]
+        uc = nx[k] * x + ny[k] * y - offset
+        p = period[k]
+        r = uc - p * math.floor(uc / p)
+        h = 0.5 * (abs(nx[k]) + abs(ny[k]))
+        dp = duty[k] * p
+        if h < r < dp - h:
+            f = 1.0
+        elif dp + h < r < p - h:
+            f = 0.0
+        else:
+            f = _stripe_dark_fraction(uc, nx[k], ny[k], p, duty[k])
+        out[j] = light[k] + f * (dark[k] - light[k])
+
+
+@njit(cache=True)
+def _polygon_pixel_coverage(vx, vy, n, x, y):
+    """Exact area of the polygon ``(vx, vy)[:n]`` inside pixel ``(x, y)`` (its square ``[x-0.5, x+0.5]^2``).
+
+    The rasteriser's decomposition (:func:`~evedge.sim._coverage._accumulate_edge`)
+    for one cell: each edge crossing the pixel's row band adds
+    ``dir * mean_Y clamp(x + 0.5 - x_edge(Y), 0, 1)`` over the band (the part
+    of the pixel's row right of the edge); edges left of the pixel add the full
+    band, edges right of it nothing; the absolute sum is the coverage. One
+    pass over the edges, no clipping buffers.
+    """
+    total = 0.0
+    # pixel-corner coordinates: the pixel spans [c, c + 1] x [r, r + 1]
+    c = float(x)
+    r = float(y)
+    j = n - 1
+    for i in range(n):
+        x0 = vx[j] + 0.5
+        y0 = vy[j] + 0.5
+        x1 = vx[i] + 0.5
+        y1 = vy[i] + 0.5
+        j = i
+        if y0 == y1:
+            continue
+        direction = 1.0
+        if y0 > y1:
+            x0, y0, x1, y1 = x1, y1, x0, y0
+            direction = -1.0
+        ya = max(r, y0)
+        yb = min(r + 1.0, y1)
+        if yb <= ya:
+            continue
+        dxdy = (x1 - x0) / (y1 - y0)
+        xa = x0 + (ya - y0) * dxdy
+        xb = x0 + (yb - y0) * dxdy
+        if xa > xb:
+            xa, xb = xb, xa
+        d = direction * (yb - ya)
+        span = xb - xa
+        if span > 0.0:
+            # mean over x in [xa, xb] of clamp(c + 1 - x, 0, 1), piece by piece (1 left of c, the ramp on
+            # [c, c + 1], 0 beyond): lengths over span, no cancellation for short spans
+            left = max(0.0, min(xb, c) - xa)
+            a2 = max(xa, c)
+            b2 = min(xb, c + 1.0)
+            ramp = (b2 - a2) * (c + 1.0 - 0.5 * (a2 + b2)) if b2 > a2 else 0.0
+            total += d * (left + ramp) / span
+        else:
+            total += d * min(1.0, max(0.0, c + 1.0 - xa))
+    return min(1.0, abs(total))
+
+
+@njit(cache=True)
+def _motion_state(m, t):
+    """``theta, sx, sy`` of :meth:`~evedge.sim.motion.PlanarMotion._state_scalar` at ``t`` (same formulas, same order).
+
+    ``m`` holds ``angle, angular_velocity, angular_acceleration, angle_amplitude,
+    frequency, chirp, v0x, v0y, ax, ay, amx, amy``.
+    """
+    ph = 2.0 * math.pi * (m[4] * t + 0.5 * m[5] * t * t)
+    sph = math.sin(ph)
+    theta = m[0] + m[1] * t + 0.5 * m[2] * t * t + m[3] * sph
+    return theta, m[6] * t + 0.5 * m[8] * t * t + m[10] * sph, m[7] * t + 0.5 * m[9] * t * t + m[11] * sph
+
+
+@njit(cache=True)
+def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values,
+               poly_cx, poly_cy, poly_r, ccx, ccy, radii, circle_values, background, clip, out):
+    """Intensity of flat pixel ``pix[j]`` at time ``t[j]`` for a :class:`~evedge.sim.planar.ShapesRenderer`.
+
+    Entry ``j`` sees the object points moved by ``c + R(theta) (q - c) + s``
+    with the motion state at ``t[j]`` (:func:`_motion_state`; the arithmetic
+    of :func:`~evedge.sim._coverage._draw_shapes`). Polygon ``k`` has vertices
+    ``qx/qy[starts[k]:starts[k + 1]]`` and a bounding circle
+    ``(poly_cx, poly_cy, poly_r)[k]`` (object coordinates) used to skip it;
+    disks have centres ``ccx/ccy`` and ``radii``. Intensity
+    ``bg + sum_k coverage_k (value_k - bg)``, clipped to [0, 1] when ``clip``.
+    """
+    nmax = 0
+    for k in range(values.shape[0]):
+        nmax = max(nmax, starts[k + 1] - starts[k])
+    vx = np.empty(nmax)
+    vy = np.empty(nmax)
+    for j in range(pix.shape[0]):
+        i = pix[j]
+        y = i // width
+        x = i - y * width
+        theta, sx, sy = _motion_state(motion, t[j])
+        c = math.cos(theta)
+        sn = math.sin(theta)
+        value = background
+        for k in range(values.shape[0]):
+            dx = poly_cx[k] - center_x
+            dy = poly_cy[k] - center_y
+            mx = center_x + c * dx - sn * dy + sx
+            my = center_y + sn * dx + c * dy + sy
+            if math.hypot(x - mx, y - my) > poly_r[k] + _HALF_DIAG:
+                continue
+            n = starts[k + 1] - starts[k]
+            for v in range(n):
+                dx = qx[starts[k] + v] - center_x
+                dy = qy[starts[k] + v] - center_y
+                vx[v] = center_x + c * dx - sn * dy + sx
+                vy[v] = center_y + sn * dx + c * dy + sy
+            cov = _polygon_pixel_coverage(vx, vy, n, x, y)
+            if cov > 0.0:
+                value += cov * (values[k] - background)
+        for k in range(radii.shape[0]):
+            dx = ccx[k] - center_x
+            dy = ccy[k] - center_y
+            mx = center_x + c * dx - sn * dy + sx
+            my = center_y + sn * dx + c * dy + sy
+            r = radii[k]
+            d = math.sqrt((x - mx) ** 2 + (y - my) ** 2)
+            if d + _HALF_DIAG <= r:
+                cov = 1.0
+            elif d - _HALF_DIAG >= r:
+                cov = 0.0
+            else:
+                cov = min(1.0, max(0.0, _disk_box_area(mx, my, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)))
+            if cov > 0.0:
+                value += cov * (circle_values[k] - background)
+        if clip:
+            value = min(1.0, max(0.0, value))
+        out[j] = value
+
+
+@njit(cache=True)
+def _root_start(ia, ib, target, shift, ta, tb, fa, fb, tc, active):
+    """Start the brackets: ``f = I - target`` at both ends; returns the number still active.
+
+    ``target`` is first moved by ``shift`` towards the start value ``ia``
+    (in place): the crossing instant is the *first* time the intensity
+    reaches the level, which is then a transversal root even where the
+    intensity only touches the level and stays there (a pixel returning to
+    the plateau it started on: its last level is that plateau's value).
+    Where the function shows no sign change over ``[ta, tb]`` the root is the
+    end nearer in ``f`` (written to ``tc``; inactive).
+    """
+    m = 0
+    for j in range(ta.shape[0]):
+        target[j] += -shift if ib[j] > ia[j] else shift
+        fa[j] = ia[j] - target[j]
+        fb[j] = ib[j] - target[j]
+        if fa[j] == 0.0:
+            tc[j] = ta[j]
+            active[j] = False
+        elif fb[j] == 0.0 or (fa[j] > 0.0) == (fb[j] > 0.0):
+            tc[j] = ta[j] if abs(fa[j]) < abs(fb[j]) else tb[j]
+            active[j] = False
+        else:
+            tc[j] = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
+            active[j] = True
+            m += 1
+    return m
+
+
+@njit(cache=True)
+def _root_step(idx, ic, target, ta, tb, fa, fb, tc, tp, fp, side, tol_s, tol_i, tol_t, active):
+    """One regula falsi step for the active crossings ``idx``, given ``ic = I(tc[idx])``; returns the number left.
+
+    The bracket ``[ta, tb]`` keeps a sign change of ``f`` (``ta`` on the side
+    of the start, where the level is not reached yet); the new point
+    replaces the end of its sign, and when the same end is replaced twice in
+    a row the other end's ``f`` is scaled by ``1 - f_new / f_old``
+    (Anderson-Bjorck; by 1/2 when that is not positive: Illinois), and after
+    three in a row the step is a bisection (a safeguard: never much slower
+    than bisection). The function is the intensity, not its log (the same
+    root: the log is monotone), because it is linear in time wherever an edge
+    crosses a pixel along a row, where regula falsi is exact in one step.
+
+    A crossing is done when its bracket is narrower than ``tol_s``, or
+    ``|f(tc)| <= tol_i``, or ``tc`` has not reached the level and the secant
+    through the last two evaluations (``tp``, ``fp``: the previous one) puts
+    the root at most ``tol_t`` after it (then ``tc`` moves to that secant
+    root, whose error is second order in ``tol_t``). Its time is ``tc``.
+    """
+    left = 0
+    for q in range(idx.shape[0]):
+        j = idx[q]
+        fc = ic[q] - target[j]
+        if abs(fc) <= tol_i:
+            active[j] = False
+            continue
+        not_reached = (fc > 0.0) == (fa[j] > 0.0)
+        if not_reached and fc != fp[j]:
+            # the secant through the last two evaluations: the root is ``step`` after ``tc``
+            step = -fc * (tc[j] - tp[j]) / (fc - fp[j])
+            if 0.0 <= step <= tol_t and tc[j] + step < tb[j]:
+                tc[j] += step  # second-order accurate: the error is far below tol_t
+                active[j] = False
+                continue
+        tp[j] = tc[j]
+        fp[j] = fc
+        # side: -k / +k when the low / high end moved the last k times in a row
+        if not_reached:
+            if side[j] < 0:
+                scale = 1.0 - fc / fa[j]
+                fb[j] *= scale if scale > 0.0 else 0.5
+                side[j] -= 1
+            else:
+                side[j] = -1
+            ta[j] = tc[j]
+            fa[j] = fc
+        else:
+            if side[j] > 0:
+                scale = 1.0 - fc / fb[j]
+                fa[j] *= scale if scale > 0.0 else 0.5
+                side[j] += 1
+            else:
+                side[j] = 1
+            tb[j] = tc[j]
+            fb[j] = fc
+        if tb[j] - ta[j] <= tol_s:
+            tc[j] = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
+            active[j] = False
+            continue
+        t = ta[j] - fa[j] * (tb[j] - ta[j]) / (fb[j] - fa[j])
+        # keep strictly inside the bracket (rounding), and bisect when one end has moved three times in a
+        # row (a function flat on one side, e.g. touching a plateau, stalls regula falsi): the bracket then
+        # at least halves every few steps
+        if not (ta[j] < t < tb[j]) or abs(side[j]) >= 3:
+            t = 0.5 * (ta[j] + tb[j])
+            side[j] = 0
+        tc[j] = t
+        left += 1
+    return left
+
+
+@njit(cache=True)
+def _crossing_levels(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, fill, cand, n_cand,
+                     out_pix, out_level, out_t, out_p):
+    """The threshold crossings of the candidates ``cand[:n_cand]`` between two samples; returns ``(n, n_moved)``.
+
+    As :func:`~evedge.sim._events._crossings` without the refractory period
+    and the jitter (applied later, on exact times): every crossing of
+    ``lref + cpos`` (ON) or ``lref - cneg`` (OFF) is written with its level
+    (the log intensity crossed) and its linearly interpolated time (a first
+    guess). With ``fill`` False nothing is written (count pass); with ``fill``
+    True the crossings are written and ``lref``, ``e_hi``, ``e_lo`` updated.
+    """
+    n = 0
+    n_moved = 0
+    span = t1 - t0
+    for j in range(n_cand):
+        i = cand[j]
+        l1 = math.log(i1[i] + eps)
+        l0 = math.log(i0[i] + eps)
+        lr = lref[i]
+        cp = cpos[i]
+        cn = cneg[i]
+        if l1 >= lr + cp:
+            on = True
+            step = cp
+        elif l1 <= lr - cn:
+            on = False
+            step = -cn
+        else:
+            continue
+        while (l1 >= lr + step) if on else (l1 <= lr + step):
+            lr += step
+            if fill:
+                out_pix[n] = i
+                out_level[n] = lr
+                out_t[n] = t0 + (lr - l0) / (l1 - l0) * span
+                out_p[n] = on
+            n += 1
+        n_moved += 1
+        if fill:
+            lref[i] = lr
+            e_hi[i] = math.exp(lr + cp)
+            e_lo[i] = math.exp(lr - cn)
+    return n, n_moved
+
+
+@njit(cache=True)
+def _refractory_jitter(pix, t, last_t, seq, refractory_s, jitter_s, jitter_seed, keep, t_emit):
+    """Apply the refractory period and the latency jitter to crossings in generation order; returns the number kept.
+
+    Crossing ``j`` of pixel ``pix[j]`` at exact time ``t[j]`` is kept when
+    ``t[j] - last_t[pix[j]] >= refractory_s`` (``last_t``: the pixel's last
+    kept crossing, updated); a kept one is emitted at
+    ``t + jitter_s |N(0, 1)|`` hashed from (pixel, per-pixel event count
+    ``seq``, updated), as :func:`~evedge.sim._events._crossings` does.
+    """
+    n = 0
+    for j in range(pix.shape[0]):
+        i = pix[j]
+        if t[j] - last_t[i] >= refractory_s:
+            keep[j] = True
+            t_emit[j] = t[j] + jitter_s * _half_normal(jitter_seed, i, seq[i]) if jitter_s > 0 else t[j]
+            seq[i] += 1
+            last_t[i] = t[j]
+            n += 1
+        else:
+            keep[j] = False
+    return n
+
+
+@njit(cache=True)
+def _hidden_crossing(i0, im, i1, eps, lref, cpos, cneg, spans, n_spans):
+    """Whether the midpoint sample ``im`` shows a level crossing the end samples ``i0``, ``i1`` do not.
+
+    For each pixel of the spans (flat ranges, as :func:`~evedge.sim._events._box_spans`)
+    whose midpoint intensity lies outside the range of its two end values, the
+    levels ``lref + k cpos`` (above) or ``lref - k cneg`` (below) between the
+    nearer end and the midpoint are counted; any such level means the step
+    hides an excursion (up and back, or down and back) whose crossings the
+    end values alone would miss. Returns True at the first one.
+    """
+    for s in range(n_spans):
+        for i in range(spans[2 * s], spans[2 * s + 1]):
+            a0 = i0[i] + eps
+            am = im[i] + eps
+            a1 = i1[i] + eps
+            hi = max(a0, a1)
+            lo = min(a0, a1)
+            if am > hi:
+                lr = lref[i]
+                if math.floor((math.log(am) - lr) / cpos[i]) > max(0.0, math.floor((math.log(hi) - lr) / cpos[i])):
+                    return True
+            elif am < lo:
+                lr = lref[i]
+                if math.floor((lr - math.log(am)) / cneg[i]) > max(0.0, math.floor((lr - math.log(lo)) / cneg[i])):
+                    return True
+    return False
+
+
+@njit(cache=True)
+def _stripes_truth(x, y, t, height, layer_of_row, nx, ny, vx, vy, phase, period, duty, dark, light,
+                   out_vx, out_vy, out_nx, out_ny):
+    """:meth:`~evedge.sim.planar.StripesRenderer.point_truth` per point (the same arithmetic, in one pass).
+
+    Rows of no layer: zero flow, NaN normal. The normal is that of the
+    nearest stripe boundary, pointing towards the brighter side.
+    """
+    for j in range(x.shape[0]):
+        row = min(max(int(y[j]), 0), height - 1)
+        k = layer_of_row[row]
+        if k < 0:
+            out_vx[j] = 0.0
+            out_vy[j] = 0.0
+            out_nx[j] = np.nan
+            out_ny[j] = np.nan
+            continue
+        out_vx[j] = vx[k]
+        out_vy[j] = vy[k]
+        u = nx[k] * (x[j] - vx[k] * t[j]) + ny[k] * (y[j] - vy[k] * t[j]) - phase[k]
+        p = period[k]
+        r = u - p * math.floor(u / p)
+        d_start = min(r, p - r)
+        d_end = abs(r - duty[k] * p)
+        sign = 1.0 if d_end < d_start else -1.0
+        if dark[k] > light[k]:
+            sign = -sign
+        out_nx[j] = sign * nx[k]
+        out_ny[j] = sign * ny[k]

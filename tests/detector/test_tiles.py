@@ -1,0 +1,124 @@
+"""Row strips in parallel (detector._tiles): the same bytes as the serial kernels, whatever the strip count."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evedge.detector import detect, filter_events
+from evedge.detector._tiles import check_n_tiles, strips
+from evedge.detector.buffer import BufferParams
+from evedge.detector.intra import IntraParams, IntraPixelLifetime, estimate_lifetimes
+from evedge.events import EVENT_DTYPE, SensorSize
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    from evedge.sim import simulate
+
+    rec = simulate(str(SCENES / "shapes_translation.toml"), duration_s=0.4, progress=False)
+    return rec.events, rec.sensor_size
+
+
+@pytest.fixture(scope="module")
+def sim_stripes():
+    from evedge.sim import simulate
+
+    rec = simulate(str(SCENES / "stripes.toml"), duration_s=0.3, progress=False)
+    return rec.events, rec.sensor_size
+
+
+# the strips are shared by numba's threads (2 here): as many strips as threads, and more
+TILES = (2, 3, 5, 16)
+
+
+def test_strips_cover_the_rows_once():
+    for h, n in ((180, 2), (128, 3), (7, 7), (100, 16)):
+        s = strips(h, n)
+        assert s[0, 0] == 0 and s[-1, 1] == h and np.all(s[1:, 0] == s[:-1, 1]) and np.all(s[:, 1] > s[:, 0])
+        assert s[:, 1].max() - s[:, 0].min() == h and (s[:, 1] - s[:, 0]).max() - (s[:, 1] - s[:, 0]).min() <= 1
+
+
+@pytest.mark.parametrize("scene", ["shapes", "sim_stripes"])
+def test_estimator_strips_give_the_serial_bytes(request, scene):
+    events, size = request.getfixturevalue(scene)
+    sub = events[filter_events(events, size)]
+    serial = estimate_lifetimes(sub, size)
+    assert serial["valid"].mean() > 0.5  # a real workload, bursts included
+    for n in TILES:
+        assert estimate_lifetimes(sub, size, n_tiles=n).tobytes() == serial.tobytes(), n
+
+
+def test_estimator_strips_on_the_real_recording(stripes_events):
+    size = SensorSize(128, 128)
+    sub = stripes_events[:60_000]
+    serial = estimate_lifetimes(sub, size)
+    for n in (2, 5):
+        assert estimate_lifetimes(sub, size, n_tiles=n).tobytes() == serial.tobytes(), n
+
+
+@pytest.mark.parametrize("params", [IntraParams(burst_lifetimes=0.0), IntraParams(window_size=7, per_polarity=False),
+                                    IntraParams(burst_lifetimes=2.0, seed=5),
+                                    IntraParams(split_gap_ratio=1.5, event_on_plane=1.0),
+                                    IntraParams(burst_startup=True, border_px=2)])
+def test_estimator_strips_other_parameters(shapes, params):
+    events, size = shapes
+    sub = events[:40_000]
+    serial = estimate_lifetimes(sub, size, params)
+    for n in (2, 7):
+        assert estimate_lifetimes(sub, size, params, n_tiles=n).tobytes() == serial.tobytes(), n
+
+
+def test_estimator_strips_streamed_in_chunks(shapes):
+    """Strips carry the SAE and burst state across chunks: chunked with strips == one-shot serial."""
+    events, size = shapes
+    sub = events[:50_000]
+    serial = estimate_lifetimes(sub, size)
+    est = IntraPixelLifetime(size, n_tiles=3)
+    cuts = [0, 1, 777, 20_000, 20_001, 50_000]
+    out = np.concatenate([est.process(sub[a:b]) for a, b in zip(cuts[:-1], cuts[1:])])
+    assert out.tobytes() == serial.tobytes()
+
+
+def test_pipeline_strips(shapes):
+    events, size = shapes
+    serial = detect(events[:60_000], size)
+    tiled = detect(events[:60_000], size, n_tiles=4)
+    assert np.array_equal(tiled.kept, serial.kept) and tiled.lifetimes.tobytes() == serial.lifetimes.tobytes()
+
+
+@pytest.mark.parametrize("mode", ["buffered", "causal"])
+def test_buffer_strips_give_the_serial_decisions(shapes, random_events, mode):
+    events, size = shapes
+    noise = random_events(30_000, 240, 180, duration_us=200_000, rng=3)
+    for ev in (events, noise):
+        params = BufferParams(mode=mode)
+        serial = filter_events(ev, size, params)
+        for n in TILES:
+            assert np.array_equal(filter_events(ev, size, params, n_tiles=n), serial), n
+
+
+@pytest.mark.parametrize("bad, err", [(0, ValueError), (181, ValueError), (1.5, TypeError), (True, TypeError)])
+def test_n_tiles_errors(bad, err):
+    with pytest.raises(err, match="n_tiles"):
+        check_n_tiles(bad, 180)
+    with pytest.raises(err, match="n_tiles"):
+        estimate_lifetimes(np.zeros(0, dtype=EVENT_DTYPE), (240, 180), n_tiles=bad)
+
+
+def test_estimator_strips_on_a_single_worker(shapes):
+    """With one numba thread, one worker runs all the strips in turn: still the serial bytes."""
+    import numba
+
+    events, size = shapes
+    sub = events[:30_000]
+    serial = estimate_lifetimes(sub, size)
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        tiled = estimate_lifetimes(sub, size, n_tiles=6)
+    finally:
+        numba.set_num_threads(before)
+    assert tiled.tobytes() == serial.tobytes()

@@ -1,0 +1,255 @@
+"""Frames and video in: ESIM's algorithm (against a reference written here), readers, upsampling, errors."""
+
+import math
+
+import numpy as np
+import pytest
+
+from evedge.sim import ConverterParams, parse_scene, render_frame
+from evedge.sim.frames import (FramesError, FramesRenderer, frames_from_arrays, open_frames_folder, open_video,
+                               read_timestamps, simulate_frames)
+
+EPS = 1e-3
+
+
+def esim_reference(frames, times_s, c_pos, c_neg, refractory_s=0.0, eps=EPS):
+    """ESIM's ``EventSimulator::imageCallback`` (esim_py) in plain Python, without threshold noise.
+
+    Per pixel: the reference starts at the first frame's log intensity; for
+    each new frame with ``|L1 - L0| > 1e-6``, levels ``ref + pol C`` strictly
+    beyond ``L0`` and up to ``L1`` are crossed at the linearly interpolated
+    time; a crossing sooner than the refractory period after the pixel's last
+    event is not emitted (the reference still moves).
+    """
+    logs = [np.log(f + eps) for f in frames]
+    ref = logs[0].copy()
+    last = np.full(ref.shape, -np.inf)
+    out = []
+    for k in range(1, len(frames)):
+        l0, l1 = logs[k - 1], logs[k]
+        t0, dt = times_s[k - 1], times_s[k] - times_s[k - 1]
+        for y in range(ref.shape[0]):
+            for x in range(ref.shape[1]):
+                it, itdt = l0[y, x], l1[y, x]
+                if abs(it - itdt) <= 1e-6:
+                    continue
+                pol = 1.0 if itdt >= it else -1.0
+                c = c_pos if pol > 0 else c_neg
+                cross = ref[y, x]
+                while True:
+                    cross += pol * c
+                    if (pol > 0 and it < cross <= itdt) or (pol < 0 and itdt <= cross < it):
+                        t = t0 + (cross - it) / (itdt - it) * dt
+                        if t - last[y, x] >= refractory_s:
+                            out.append((x, y, t, pol > 0))
+                            last[y, x] = t
+                        ref[y, x] = cross
+                    else:
+                        break
+    return out
+
+
+def _rendered_frames(n=60, rate_hz=1000.0):
+    d = {
+        "scene": {"kind": "shapes", "duration_s": 1.0, "background": 0.8},
+        "sensor": {"width": 26, "height": 14},
+        "motion": {"velocity_px_s": [180.0, -60.0]},
+        "shapes": [{"kind": "star", "center_px": [9, 7], "radius_px": 6, "intensity": 0.15},
+                   {"kind": "circle", "center_px": [19, 8], "radius_px": 3.5, "intensity": 0.35}],
+    }
+    scene = parse_scene(d, "f.toml")
+    t = np.arange(n) / rate_hz
+    return np.stack([render_frame(scene, float(tk)) for tk in t]), t
+
+
+def _per_pixel(x, y, t, p):
+    out = {}
+    for xi, yi, ti, pi in zip(x, y, t, p):
+        out.setdefault((int(xi), int(yi)), []).append((float(ti), bool(pi)))
+    return {k: sorted(v) for k, v in out.items()}
+
+
+@pytest.mark.parametrize("refractory_us", [0.0, 300.0])
+def test_frames_match_esim_reference(refractory_us):
+    frames, t = _rendered_frames()
+    params = ConverterParams(contrast_pos=0.18, contrast_neg=0.22, refractory_us=refractory_us)
+    rec = simulate_frames(frames_from_arrays(frames, t), params, progress=False)
+    want = esim_reference(frames, t, 0.18, 0.22, refractory_us * 1e-6)
+    assert len(want) > 300
+    assert rec.events.shape[0] == len(want)
+    got = _per_pixel(rec.events["x"], rec.events["y"], rec.truth["t_ns"] * 1e-9, rec.events["p"])
+    ref = _per_pixel(*zip(*want))
+    assert got.keys() == ref.keys()
+    dt = []
+    for key in ref:
+        assert [p for _, p in got[key]] == [p for _, p in ref[key]]
+        dt += [abs(a[0] - b[0]) * 1e6 for a, b in zip(got[key], ref[key])]
+    assert np.median(dt) <= 0.5 and max(dt) < 0.001  # ns output of the same algorithm
+    assert np.all(np.abs(rec.events["t"] - rec.truth["t_ns"] / 1e3) <= 0.5 + 1e-9)
+    assert np.all(rec.truth["is_signal"]) and np.all(np.isnan(rec.truth["vx_px_s"]))
+
+
+def test_pixel_model_is_the_scenes_one_and_chunking_does_not_matter():
+    frames, t = _rendered_frames(40)
+    params = ConverterParams(contrast_sigma=0.05, noise_rate_hz=30.0, refractory_us=200.0, jitter_us=5.0)
+    a = simulate_frames(frames_from_arrays(frames, t), params, seed=4, progress=False, chunk_s=1.0)
+    b = simulate_frames(frames_from_arrays(frames, t), params, seed=4, progress=False, chunk_s=0.0037)
+    assert a.events.tobytes() == b.events.tobytes() and a.truth.tobytes() == b.truth.tobytes()
+    assert (~a.truth["is_signal"]).sum() > 5
+    c = simulate_frames(frames_from_arrays(frames, t), params, seed=5, progress=False)
+    assert c.events.tobytes() != a.events.tobytes()
+    sig = a.truth["is_signal"]
+    for key, ev in _per_pixel(a.events["x"][sig], a.events["y"][sig], a.truth["t_ns"][sig] * 1e-9,
+                              a.events["p"][sig]).items():
+        gaps = np.diff([e[0] for e in ev])
+        assert np.all(gaps >= 200e-6 - 1e-9)  # refractory (jitter only delays)
+
+
+def test_log_input_and_log_upsampling_keep_the_times():
+    frames, t = _rendered_frames(30)
+    # 8-bit levels as in a video: no pixel changes by a rounding error only (where a crossing's instant
+    # inside the frame interval is arbitrary)
+    frames = np.rint(frames * 255) / 255
+    base = simulate_frames(frames_from_arrays(frames, t), progress=False)
+    logged = simulate_frames(frames_from_arrays(np.log(frames + EPS), t), log_input=True, progress=False)
+    up = simulate_frames(frames_from_arrays(frames, t), upsample=4, interpolation="log", progress=False)
+    want = _per_pixel(base.events["x"], base.events["y"], base.truth["t_ns"], base.events["p"])
+    for other in (logged, up):
+        got = _per_pixel(other.events["x"], other.events["y"], other.truth["t_ns"], other.events["p"])
+        assert got.keys() == want.keys()
+        for key in want:
+            assert [p for _, p in got[key]] == [p for _, p in want[key]]
+            assert max(abs(a[0] - b[0]) for a, b in zip(got[key], want[key])) <= 2  # ns: rounding only
+    assert up.metadata["n_samples"] == 4 * base.metadata["n_samples"]
+
+
+def test_flow_upsampling_moves_edges_between_frames():
+    """The mid sub-frame of a texture shifting 4 px per frame is the 2 px shift, not a cross-fade."""
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(0)
+    big = gaussian_filter(rng.uniform(size=(60, 120)), 2.0)
+    big = 0.15 + 0.7 * (big - big.min()) / np.ptp(big)
+    crop = lambda dx: big[6:54, 20 - dx:84 - dx]  # noqa: E731  (content moves right by dx)
+    frames = np.stack([crop(0), crop(4), crop(8)])
+    t = np.array([0.0, 0.01, 0.02])
+    truth = crop(2)[8:-8, 8:-8]
+    err = {}
+    for interp in ("log", "flow"):
+        r = FramesRenderer(frames_from_arrays(frames, t), upsample=2, interpolation=interp)
+        assert r.next_sample_s(0.0) == 0.005
+        mid = r.intensity(0.005)[8:-8, 8:-8]
+        err[interp] = np.abs(mid - truth).mean()
+    assert err["flow"] < 0.4 * err["log"], err
+    params = ConverterParams(contrast_pos=0.1, contrast_neg=0.1)
+    rec = simulate_frames(frames_from_arrays(frames, t), params, upsample=4, interpolation="flow", progress=False)
+    assert rec.events.shape[0] > 100 and rec.metadata["interpolation"] == "flow"
+
+
+def _write_video(path, frames_u8, fps):
+    import cv2
+
+    wr = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), fps, (frames_u8.shape[2], frames_u8.shape[1]),
+                         isColor=False)
+    assert wr.isOpened()
+    for f in frames_u8:
+        wr.write(f)
+    wr.release()
+
+
+def test_video_and_folder_read_like_arrays(tmp_path):
+    import cv2
+
+    frames, _ = _rendered_frames(12)
+    u8 = np.rint(frames * 255).astype(np.uint8)
+    _write_video(tmp_path / "v.avi", u8, 250.0)
+    ref = simulate_frames(frames_from_arrays(u8, np.arange(12) / 250.0), progress=False)
+    assert ref.events.shape[0] > 50
+    vid = simulate_frames(open_video(tmp_path / "v.avi"), progress=False)  # container times, 4 ms apart
+    assert vid.events.tobytes() == ref.events.tobytes()
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, f in enumerate(u8):
+        cv2.imwrite(str(folder / f"{k:04d}.png"), cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))  # colour: read as grey
+    (folder / "timestamps.txt").write_text("# t [s]\n" + "".join(f"{k / 250.0 + 3.0}\n" for k in range(12)))
+    src = open_frames_folder(folder)
+    assert src.times_s[0] == 3.0
+    fold = simulate_frames(src, progress=False)
+    assert fold.events.tobytes() == ref.events.tobytes() and fold.metadata["first_frame_s"] == 3.0
+    rate = simulate_frames(open_frames_folder(folder, rate_hz=250.0), progress=False)
+    assert rate.events.tobytes() == ref.events.tobytes()
+    # an Event Camera Dataset folder: images/ with images.txt ("t images/name.png") beside it
+    (folder / "timestamps.txt").unlink()
+    (tmp_path / "images.txt").write_text("".join(f"{k / 250.0:.9f} frames/{k:04d}.png\n" for k in range(12)))
+    ecd = simulate_frames(open_frames_folder(folder), progress=False)
+    assert ecd.events.tobytes() == ref.events.tobytes()
+
+
+def test_bad_inputs_are_named(tmp_path):
+    with pytest.raises(FramesError, match="nope.avi: no such video file"):
+        open_video(tmp_path / "nope.avi")
+    (tmp_path / "junk.mp4").write_text("not a video")
+    with pytest.raises(FramesError, match="junk.mp4"):
+        open_video(tmp_path / "junk.mp4")
+    ts = tmp_path / "ts.txt"
+    ts.write_text("0.0\n0.1\nabc\n")
+    with pytest.raises(FramesError, match="ts.txt: line 3: expected a time in seconds, got 'abc'"):
+        read_timestamps(ts)
+    ts.write_text("0.0\n0.2\n0.1\n")
+    with pytest.raises(FramesError, match="frame 2 at 0.1 s follows 0.2 s"):
+        read_timestamps(ts)
+    folder = tmp_path / "f"
+    folder.mkdir()
+    with pytest.raises(FramesError, match="need at least 2 images"):
+        open_frames_folder(folder)
+    import cv2
+
+    for k in range(3):
+        cv2.imwrite(str(folder / f"{k}.png"), np.zeros((4, 5), np.uint8))
+    with pytest.raises(FramesError, match="no frame times"):
+        open_frames_folder(folder)
+    ts.write_text("0\n1\n")
+    with pytest.raises(FramesError, match="3 frames but 2 timestamps"):
+        open_frames_folder(folder, timestamps=ts)
+    cv2.imwrite(str(folder / "3.png"), np.zeros((5, 5), np.uint8))
+    src = open_frames_folder(folder, rate_hz=10.0)
+    with pytest.raises(FramesError, match="3.png|frame 3 is 5x5, expected 5x4"):
+        simulate_frames(src, progress=False)
+    with pytest.raises(ValueError, match="interpolation must be one of"):
+        FramesRenderer(src, interpolation="cubic")
+
+
+def test_non_finite_frames_are_named():
+    frames, t = _rendered_frames(6)
+    bad = frames.copy()
+    bad[3, 2, 5] = np.nan
+    with pytest.raises(ValueError, match=r"clip.npy: the sample at t = 0.003 s has 1 non-finite pixel values"):
+        simulate_frames(frames_from_arrays(bad, t, name="clip.npy"), progress=False)
+    bad = frames.copy()
+    bad[0, 0, 0] = np.inf
+    with pytest.raises(ValueError, match="clip.npy: the first sample has 1 non-finite"):
+        simulate_frames(frames_from_arrays(bad, t, name="clip.npy"), progress=False)
+
+
+def test_frames_api_refuses_bad_arguments(tmp_path):
+    frames, t = _rendered_frames(4)
+    with pytest.raises(FramesError, match="clip: 4 frames but times_s has shape \\(3,\\)"):
+        frames_from_arrays(frames, t[:3], name="clip")
+    with pytest.raises(FramesError, match="frame 2 at 0.001 s follows 0.002 s"):
+        frames_from_arrays(frames, [0.0, 0.002, 0.001, 0.003])
+    with pytest.raises(FramesError, match="expected frames of shape \\(n, height, width\\)"):
+        frames_from_arrays(frames[0], t)
+    with pytest.raises(TypeError, match="source must be a FrameSource"):
+        simulate_frames(frames, progress=False)
+    with pytest.raises(TypeError, match="params must be a ConverterParams"):
+        simulate_frames(frames_from_arrays(frames, t), {"contrast_pos": 0.2}, progress=False)
+    with pytest.raises(ValueError, match="upsample must be an integer in 1..1000"):
+        simulate_frames(frames_from_arrays(frames, t), upsample=0, progress=False)
+    import cv2
+
+    for k in range(2):
+        cv2.imwrite(str(tmp_path / f"{k}.png"), np.zeros((3, 3), np.uint8))
+    with pytest.raises(FramesError, match="rate_hz must be a positive number, got -1.0"):
+        open_frames_folder(tmp_path, rate_hz=-1.0)
+    with pytest.raises(FramesError, match="give timestamps or rate_hz, not both"):
+        open_frames_folder(tmp_path, rate_hz=10.0, timestamps=np.array([0.0, 1.0]))
