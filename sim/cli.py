@@ -83,10 +83,13 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
     frame_opts = dict(timestamps=timestamps, rate_hz=rate_hz, contrast=contrast, contrast_sigma=contrast_sigma,
                       refractory_us=refractory_us, noise_rate_hz=noise_rate_hz)
     _check_output(output, fmt)
-    try:
-        replacing = check_output(output, overwrite=overwrite)
-    except OutputExistsError as err:
-        raise click.ClickException(str(err)) from None
+
+    def replacing() -> bool:
+        """After the usage checks, before any work: refuse or announce replacing OUTPUT."""
+        try:
+            return check_output(output, overwrite=overwrite)
+        except OutputExistsError as err:
+            raise click.ClickException(str(err)) from None
     if scene is not None:
         used = [("--rate" if k == "rate_hz" else "--" + k.replace("_", "-"))
                 for k, v in frame_opts.items() if v is not None]
@@ -96,6 +99,7 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
                                    "(a scene sets its pixel model in its [events] table)")
         from .scene import SceneError, load_scene, with_sensor
         from .simulate import simulate as run
+        replaces = replacing()
         try:
             parsed = load_scene(scene) if sensor is None else with_sensor(load_scene(scene), sensor)
             rec = run(parsed, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=not quiet)
@@ -106,6 +110,7 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
         for name, value in (("--duration", duration_s), ("--frame-rate", frame_rate_hz)):
             if value is not None:
                 raise click.UsageError(f"{name} applies to scenes only")
+        replaces = replacing()
         from dataclasses import replace
 
         from .converter import ConverterParams
@@ -125,7 +130,7 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
             path = write_recording(output, rec) if fmt == "h5" else write_ecd(output, rec)
         except (FramesError, ValueError, TypeError, OSError, MemoryError) as err:
             raise click.ClickException(str(err) or type(err).__name__) from None
-    if replacing:
+    if replaces:
         click.echo(f"replaced the earlier output {output}", err=True)
     md = rec.metadata
     click.echo(f"{path}: {rec.events.shape[0]} events ({md['n_signal']} signal, {md['n_noise']} noise), "
