@@ -138,12 +138,13 @@ def test_a_full_disk_is_an_error_line_and_keeps_the_earlier_output(tmp_path, ful
 
     src = _events_file(tmp_path / "src.h5")
     # a small earlier output fits; the big new one does not
-    small = ("detect", src, "-o", folder / "det", "--times", "100000", "--quiet", "--method", "count")
+    small = ("detect", src, "-o", folder / "det", "--times", "100000", "--quiet", "--method", "count",
+             "--no-embed-events")
     code, text, _ = _run(*small, preexec_fn=limit)
     assert code == 0, text
     old = _detection_digest(folder / "det")
     code, text, _ = _run("detect", src, "-o", folder / "det", "--fps", "400", "--quiet", "--overwrite",
-                         "--method", "count", preexec_fn=limit)
+                         "--method", "count", "--no-embed-events", preexec_fn=limit)
     assert code == 1 and "Traceback" not in text and "cannot write the output" in text, text
     assert _detection_digest(folder / "det") == old
     assert sorted(p.name for p in folder.iterdir()) == ["det"]  # no temp folder left
