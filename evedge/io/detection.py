@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 
 from ..events import EVENT_DTYPE, Frames, SensorSize, make_events
-from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError
+from .hdf5 import _metadata_json, _new_file
 
 __all__ = ["DETECTION_FORMAT", "DETECTION_FORMAT_VERSION", "LIFETIME_COLUMNS", "Detection", "file_sha256",
            "is_detection_file", "read_detection", "write_detection"]
@@ -113,8 +113,6 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
         For a wrong ``detection`` (not a Detection, events not EVENT_DTYPE,
         per-event columns not aligned, metadata not JSON); nothing is written.
     """
-    import h5py
-
     if not isinstance(detection, Detection):
         raise TypeError(f"write_detection: expected a Detection, got {type(detection).__name__}")
     size = detection.sensor_size
@@ -128,31 +126,21 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
             raise ValueError(f"write_detection: lifetimes lack columns {missing}")
         if ev is not None and lt.shape[0] != ev.shape[0]:
             raise ValueError(f"write_detection: {lt.shape[0]} lifetime rows for {ev.shape[0]} events")
-    try:
-        metadata = json.dumps(detection.metadata, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"write_detection: metadata is not JSON-serialisable: {err}") from err
+    metadata = _metadata_json(detection.metadata, "write_detection: metadata")
     path = Path(path)
-    check_output_file(path, "write_detection")
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs["format"] = DETECTION_FORMAT
-            f.attrs["format_version"] = np.int64(DETECTION_FORMAT_VERSION)
-            f.attrs["sensor_width"] = np.int64(size.width)
-            f.attrs["sensor_height"] = np.int64(size.height)
-            f.attrs["metadata"] = metadata
-            if ev is not None:
-                g = f.create_group("events", track_order=True)
-                for name in ("x", "y", "t", "p"):
-                    _dataset(g, name, np.ascontiguousarray(ev[name]), compress_per_event)
-            if lt is not None:
-                g = f.create_group("lifetimes", track_order=True)
-                for name, dtype in LIFETIME_COLUMNS:
-                    _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype), compress_per_event)
-            if detection.edges is not None:
-                g = f.create_group("edges", track_order=True)
-                _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
-                _dataset(g, "images", np.asarray(detection.edges.images, bool))
+    with _new_file(path, "write_detection", DETECTION_FORMAT, DETECTION_FORMAT_VERSION, size, metadata) as f:
+        if ev is not None:
+            g = f.create_group("events", track_order=True)
+            for name in ("x", "y", "t", "p"):
+                _dataset(g, name, np.ascontiguousarray(ev[name]), compress_per_event)
+        if lt is not None:
+            g = f.create_group("lifetimes", track_order=True)
+            for name, dtype in LIFETIME_COLUMNS:
+                _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype), compress_per_event)
+        if detection.edges is not None:
+            g = f.create_group("edges", track_order=True)
+            _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
+            _dataset(g, "images", np.asarray(detection.edges.images, bool))
     return path
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,30 @@ def _write_stack(parent, name: str, stack: Frames) -> None:
     _dataset(group, "images", stack.images, (1,) + stack.images.shape[1:])
 
 
+def _metadata_json(metadata, what: str) -> str:
+    """``metadata`` as the sorted JSON stored in a file's ``metadata`` attribute; ``what`` names it in the error."""
+    try:
+        return json.dumps(metadata, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{what} is not JSON-serialisable: {err}") from err
+
+
+@contextmanager
+def _new_file(path: Path, caller: str, fmt: str, version: int, sensor_size: SensorSize, metadata: str):
+    """An evedge HDF5 file written atomically at ``path``, its header attributes set (shared by the writers)."""
+    import h5py
+
+    check_output_file(path, caller)
+    with atomic_path(path) as tmp:
+        with h5py.File(tmp, "w", track_order=True) as f:
+            f.attrs["format"] = fmt
+            f.attrs["format_version"] = np.int64(version)
+            f.attrs["sensor_width"] = np.int64(sensor_size.width)
+            f.attrs["sensor_height"] = np.int64(sensor_size.height)
+            f.attrs["metadata"] = metadata
+            yield f
+
+
 def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     """Write a recording to the evedge HDF5 format (temp file, then rename).
 
@@ -74,51 +99,39 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
         The folder of ``path`` does not exist (``FileNotFoundError``) or
         ``path`` is a folder (``IsADirectoryError``); nothing is written.
     """
-    import h5py
-
     if not isinstance(recording, Recording):
         raise TypeError(f"write_recording: expected a Recording, got {type(recording).__name__}")
-    try:
-        metadata = json.dumps(recording.metadata, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"write_recording: Recording.metadata is not JSON-serialisable: {err}") from err
+    metadata = _metadata_json(recording.metadata, "write_recording: Recording.metadata")
     path = Path(path)
-    check_output_file(path, "write_recording")
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs["format"] = FORMAT_NAME
-            f.attrs["format_version"] = np.int64(FORMAT_VERSION)
-            f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
-            f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
-            f.attrs["metadata"] = metadata
-            if recording.calibration is not None:
-                # fx fy cx cy k1 k2 p1 p2 k3, as in calib.txt
-                f.attrs["calibration"] = np.asarray(recording.calibration.as_list(), dtype=np.float64)
-            ev = recording.events
-            group = f.create_group("events", track_order=True)
-            chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
-            for name in ("x", "y", "t", "p"):
-                _dataset(group, name, np.ascontiguousarray(ev[name]), chunk)
-            if recording.truth is not None:
-                truth = recording.truth
-                if truth.dtype.names is None:
-                    raise TypeError("write_recording: Recording.truth must be a structured array")
-                group = f.create_group("truth", track_order=True)
-                for name in truth.dtype.names:
-                    col = np.ascontiguousarray(truth[name])
-                    _dataset(group, name, col, (max(1, min(truth.size, _EVENT_CHUNK)),) + col.shape[1:])
-            if recording.frames is not None:
-                _write_stack(f, "frames", recording.frames)
-            if recording.edges is not None:
-                _write_stack(f, "edges", recording.edges)
-            if recording.maps:
-                group = f.create_group("maps", track_order=True)
-                for name, stack in recording.maps.items():
-                    _write_stack(group, name, stack)
-            if recording.imu is not None:
-                group = f.create_group("imu", track_order=True)
-                for name in recording.imu.dtype.names:
-                    _dataset(group, name, np.ascontiguousarray(recording.imu[name]), (max(1, min(recording.imu.size, 4096)),))
+    with _new_file(path, "write_recording", FORMAT_NAME, FORMAT_VERSION, recording.sensor_size, metadata) as f:
+        if recording.calibration is not None:
+            # fx fy cx cy k1 k2 p1 p2 k3, as in calib.txt
+            f.attrs["calibration"] = np.asarray(recording.calibration.as_list(), dtype=np.float64)
+        ev = recording.events
+        group = f.create_group("events", track_order=True)
+        chunk = (max(1, min(ev.size, _EVENT_CHUNK)),)
+        for name in ("x", "y", "t", "p"):
+            _dataset(group, name, np.ascontiguousarray(ev[name]), chunk)
+        if recording.truth is not None:
+            truth = recording.truth
+            if truth.dtype.names is None:
+                raise TypeError("write_recording: Recording.truth must be a structured array")
+            group = f.create_group("truth", track_order=True)
+            for name in truth.dtype.names:
+                col = np.ascontiguousarray(truth[name])
+                _dataset(group, name, col, (max(1, min(truth.size, _EVENT_CHUNK)),) + col.shape[1:])
+        if recording.frames is not None:
+            _write_stack(f, "frames", recording.frames)
+        if recording.edges is not None:
+            _write_stack(f, "edges", recording.edges)
+        if recording.maps:
+            group = f.create_group("maps", track_order=True)
+            for name, stack in recording.maps.items():
+                _write_stack(group, name, stack)
+        if recording.imu is not None:
+            group = f.create_group("imu", track_order=True)
+            for name in recording.imu.dtype.names:
+                _dataset(group, name, np.ascontiguousarray(recording.imu[name]), (max(1, min(recording.imu.size, 4096)),))
     return path
 
 
