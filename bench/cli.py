@@ -105,6 +105,19 @@ from .sweep_cli import sweep  # noqa: E402  (its heavy imports happen when it ru
 bench.add_command(sweep)
 
 
+def _experiment(*, seed: bool = True):
+    """``@bench.command()`` with the options every experiment takes: -o/--out, --overwrite, --quick, --no-progress
+    (and --seed)."""
+    common = (_OUT, _OVERWRITE, _QUICK, _NOPROG, _SEED) if seed else (_OUT, _OVERWRITE, _QUICK, _NOPROG)
+
+    def decorate(f):
+        for option in reversed(common):  # the same order as the decorators stacked on top of f
+            f = option(f)
+        return bench.command()(f)
+
+    return decorate
+
+
 def _summary(results: dict, t0: float) -> None:
     # one line per paper claim (evedge.bench.claims); every detailed check is in the report
     for c in results.get("claims", []):
@@ -118,12 +131,7 @@ def _summary(results: dict, t0: float) -> None:
     click.echo(f"report: {Path(results['report']).resolve()}")
 
 
-@bench.command()
-@_OUT
-@_OVERWRITE
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @click.option("--only", "only", multiple=True, type=click.Choice(["ransac", "lifetime", "similarity", "real",
                                                                     "qualitative"]),
               help="Run only these experiments (repeatable; default all).")
@@ -148,12 +156,7 @@ def paper(out: Path, quick: bool, no_progress: bool, seed: int, only: tuple, sce
         sys.exit(1)
 
 
-@bench.command()
-@_OUT
-@_OVERWRITE
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @click.option("--repetitions", type=click.IntRange(min=1), default=None, help="Windows per noise level (default 1000, quick 100).")
 def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: int | None) -> None:
     """RANSAC inlier F-measure and lifetime error vs. timestamp noise (paper fig. 7)."""
@@ -167,12 +170,7 @@ def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: in
     click.echo("\n".join(res["figures"]))
 
 
-@bench.command()
-@_OUT
-@_OVERWRITE
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @_DATA
 @click.option("--scene", default="stripes", show_default=True, callback=_scene,
               help="Scene simulated for the simulated dataset: a shipped scene's name or a TOML file.")
@@ -184,12 +182,7 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int, data_dir, sce
     click.echo("\n".join(res["figures"]))
 
 
-@bench.command()
-@_OUT
-@_OVERWRITE
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @click.option("--scene", default="shapes_translation", show_default=True, callback=_scene,
               help="A shipped scene's name or a scene TOML file.")
 @_DISPLAY
@@ -213,11 +206,7 @@ def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str,
     click.echo("\n".join(res["figures"] + [str(p) for p in paths]))
 
 
-@bench.command()
-@_OUT
-@_OVERWRITE
-@_QUICK
-@_NOPROG
+@_experiment(seed=False)
 @_DATA
 def qualitative(out: Path, quick: bool, no_progress: bool, data_dir) -> None:
     """Grey, Canny, proposed, Mueggler, 1 ms and 30 ms side by side (paper figs. 1, 8), on slider_depth."""
@@ -227,11 +216,7 @@ def qualitative(out: Path, quick: bool, no_progress: bool, data_dir) -> None:
     click.echo("\n".join(res["figures"]))
 
 
-@bench.command()
-@_OUT
-@_OVERWRITE
-@_QUICK
-@_NOPROG
+@_experiment(seed=False)
 @click.option("--path", type=click.Path(exists=True, path_type=Path), default=None,
               help="Recording with frames (default DATA/slider_depth).")
 @_DISPLAY

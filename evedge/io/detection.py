@@ -39,10 +39,10 @@ from typing import Any
 
 import numpy as np
 
-from ..events import EVENT_DTYPE, Frames, SensorSize, make_events
-from ._atomic import check_output_file, write_hdf5_atomic
 from .._resources import memory_shortfall
+from ..events import EVENT_DTYPE, Frames, SensorSize, make_events
 from ._checks import EventFileError
+from .hdf5 import _metadata_json, _new_file
 
 __all__ = ["DETECTION_FORMAT", "DETECTION_FORMAT_VERSION", "LIFETIME_COLUMNS", "Detection", "file_sha256",
            "is_detection_file", "read_detection", "write_detection"]
@@ -128,21 +128,9 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
             raise ValueError(f"write_detection: lifetimes lack columns {missing}")
         if ev is not None and lt.shape[0] != ev.shape[0]:
             raise ValueError(f"write_detection: {lt.shape[0]} lifetime rows for {ev.shape[0]} events")
-    try:
-        metadata = json.dumps(detection.metadata, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"write_detection: metadata is not JSON-serialisable: {err}") from err
+    metadata = _metadata_json(detection.metadata, "write_detection: metadata")
     path = Path(path)
-    check_output_file(path, "write_detection")
-
-    from .hdf5 import seal
-
-    def fill(f):  # built in memory, then written: HDF5 can crash the process when a disk fills
-        f.attrs["format"] = DETECTION_FORMAT
-        f.attrs["format_version"] = np.int64(DETECTION_FORMAT_VERSION)
-        f.attrs["sensor_width"] = np.int64(size.width)
-        f.attrs["sensor_height"] = np.int64(size.height)
-        f.attrs["metadata"] = metadata
+    with _new_file(path, "write_detection", DETECTION_FORMAT, DETECTION_FORMAT_VERSION, size, metadata) as f:
         if ev is not None:
             g = f.create_group("events", track_order=True)
             for name in ("x", "y", "t", "p"):
@@ -155,9 +143,6 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
             g = f.create_group("edges", track_order=True)
             _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
             _dataset(g, "images", np.asarray(detection.edges.images, bool))
-        seal(f)
-
-    write_hdf5_atomic(path, fill)
     return path
 
 

@@ -42,7 +42,7 @@ import numpy as np
 from .._resources import memory_shortfall
 from ..calibration import CameraCalibration
 from ..events import Frames, Recording, SensorSize
-from ._atomic import check_output_file, write_hdf5_atomic
+from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError, finish_events, locate_index
 from .registry import Format, register_format
 
@@ -66,6 +66,41 @@ def _write_stack(parent, name: str, stack: Frames) -> None:
     group = parent.create_group(name, track_order=True)
     _dataset(group, "t_us", stack.t_us, (max(1, min(len(stack), 4096)),))
     _dataset(group, "images", stack.images, (1,) + stack.images.shape[1:])
+
+
+def _metadata_json(metadata, what: str) -> str:
+    """``metadata`` as the sorted JSON stored in a file's ``metadata`` attribute; ``what`` names it in the error."""
+    try:
+        return json.dumps(metadata, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{what} is not JSON-serialisable: {err}") from err
+
+
+@contextmanager
+def _new_file(path: Path, caller: str, fmt: str, version: int, sensor_size: SensorSize, metadata: str):
+    """An evedge HDF5 file written atomically at ``path``, its header attributes set (shared by the writers).
+
+    The file is built in memory, sealed with its checksums (:func:`seal`) and
+    then written through a temp file: HDF5 can crash the process when a disk
+    fills during its own writes (:func:`evedge.io._atomic.write_hdf5_atomic`).
+    """
+    import io
+
+    import h5py
+
+    check_output_file(path, caller)
+    buf = io.BytesIO()
+    with h5py.File(buf, "w", track_order=True) as f:
+        f.attrs["format"] = fmt
+        f.attrs["format_version"] = np.int64(version)
+        f.attrs["sensor_width"] = np.int64(sensor_size.width)
+        f.attrs["sensor_height"] = np.int64(sensor_size.height)
+        f.attrs["metadata"] = metadata
+        yield f
+        seal(f)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(buf.getbuffer())
 
 
 def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
@@ -102,19 +137,9 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     """
     if not isinstance(recording, Recording):
         raise TypeError(f"write_recording: expected a Recording, got {type(recording).__name__}")
-    try:
-        metadata = json.dumps(recording.metadata, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"write_recording: Recording.metadata is not JSON-serialisable: {err}") from err
+    metadata = _metadata_json(recording.metadata, "write_recording: Recording.metadata")
     path = Path(path)
-    check_output_file(path, "write_recording")
-
-    def fill(f):
-        f.attrs["format"] = FORMAT_NAME
-        f.attrs["format_version"] = np.int64(FORMAT_VERSION)
-        f.attrs["sensor_width"] = np.int64(recording.sensor_size.width)
-        f.attrs["sensor_height"] = np.int64(recording.sensor_size.height)
-        f.attrs["metadata"] = metadata
+    with _new_file(path, "write_recording", FORMAT_NAME, FORMAT_VERSION, recording.sensor_size, metadata) as f:
         if recording.calibration is not None:
             # fx fy cx cy k1 k2 p1 p2 k3, as in calib.txt
             f.attrs["calibration"] = np.asarray(recording.calibration.as_list(), dtype=np.float64)
@@ -143,9 +168,7 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
             group = f.create_group("imu", track_order=True)
             for name in recording.imu.dtype.names:
                 _dataset(group, name, np.ascontiguousarray(recording.imu[name]), (max(1, min(recording.imu.size, 4096)),))
-        seal(f)
-
-    return write_hdf5_atomic(path, fill)
+    return path
 
 
 #: gzip cannot expand data more than about 1032 times; a chunked, compressed dataset
