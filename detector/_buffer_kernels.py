@@ -29,15 +29,17 @@ def new_state(width, height):
 
 
 @njit(cache=True, inline="always")
-def _walk(state, c, base_g, t, prev, supported, lo):
-    """Mark the unwalked events of the pixel at ``c`` no older than ``lo``; then none is left unwalked.
+def _walk(state, c, g, base_g, t, prev, supported, lo):
+    """Mark the unwalked events of the pixel at ``c``, newest ``g``, no older than ``lo``; then none is left unwalked.
 
-    The pixel's latest event is within the window (the caller checked ``last_t >= lo``).
+    ``g`` is unreleased and within the window (the caller checked ``last_t >= lo``).
     An unwalked event older than ``lo`` can no longer be supported by a later event
     (time-sorted stream): dropping it from the walk changes no decision.
     """
-    g = state[c + 1]
     state[c + 1] = -1
+    j = g - base_g
+    supported[j] = True
+    g = prev[j]
     while g >= base_g:
         j = g - base_g
         if t[j] < lo:
@@ -67,8 +69,10 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, heigh
     for k in range(n_old, n):
         tk = t[k]
         lo = tk - tau_us
+        # "fired within tau" is last_t >= lo and last_t != NEVER: one comparison with lo_n
+        lo_n = lo + (lo == NEVER)
         c = p[k] * plane + (y[k] + 1) * row + 2 * (x[k] + 1)
-        # the 8 neighbours (not the pixel itself); NEVER < lo unless lo itself underflows
+        # the 8 neighbours (not the pixel itself)
         a0 = c - row - 2
         a1 = c - row
         a2 = c - row + 2
@@ -77,34 +81,51 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, heigh
         a5 = c + row - 2
         a6 = c + row
         a7 = c + row + 2
-        n0 = (state[a0] >= lo) & (state[a0] != NEVER)
-        n1 = (state[a1] >= lo) & (state[a1] != NEVER)
-        n2 = (state[a2] >= lo) & (state[a2] != NEVER)
-        n3 = (state[a3] >= lo) & (state[a3] != NEVER)
-        n4 = (state[a4] >= lo) & (state[a4] != NEVER)
-        n5 = (state[a5] >= lo) & (state[a5] != NEVER)
-        n6 = (state[a6] >= lo) & (state[a6] != NEVER)
-        n7 = (state[a7] >= lo) & (state[a7] != NEVER)
-        any_near = n0 | n1 | n2 | n3 | n4 | n5 | n6 | n7
-        supported[k] = any_near
-        if any_near and not causal:
+        n0 = state[a0] >= lo_n
+        n1 = state[a1] >= lo_n
+        n2 = state[a2] >= lo_n
+        n3 = state[a3] >= lo_n
+        n4 = state[a4] >= lo_n
+        n5 = state[a5] >= lo_n
+        n6 = state[a6] >= lo_n
+        n7 = state[a7] >= lo_n
+        supported[k] = n0 | n1 | n2 | n3 | n4 | n5 | n6 | n7
+        if not causal:
             # ...and this event supports the unwalked events of those neighbours within tau
-            if n0 and state[a0 + 1] >= base_g:
-                _walk(state, a0, base_g, t, prev, supported, lo)
-            if n1 and state[a1 + 1] >= base_g:
-                _walk(state, a1, base_g, t, prev, supported, lo)
-            if n2 and state[a2 + 1] >= base_g:
-                _walk(state, a2, base_g, t, prev, supported, lo)
-            if n3 and state[a3 + 1] >= base_g:
-                _walk(state, a3, base_g, t, prev, supported, lo)
-            if n4 and state[a4 + 1] >= base_g:
-                _walk(state, a4, base_g, t, prev, supported, lo)
-            if n5 and state[a5 + 1] >= base_g:
-                _walk(state, a5, base_g, t, prev, supported, lo)
-            if n6 and state[a6 + 1] >= base_g:
-                _walk(state, a6, base_g, t, prev, supported, lo)
-            if n7 and state[a7 + 1] >= base_g:
-                _walk(state, a7, base_g, t, prev, supported, lo)
+            # (rare: each event is walked at most once, so test all eight before branching)
+            h0 = state[a0 + 1]
+            h1 = state[a1 + 1]
+            h2 = state[a2 + 1]
+            h3 = state[a3 + 1]
+            h4 = state[a4 + 1]
+            h5 = state[a5 + 1]
+            h6 = state[a6 + 1]
+            h7 = state[a7 + 1]
+            w0 = n0 & (h0 >= base_g)
+            w1 = n1 & (h1 >= base_g)
+            w2 = n2 & (h2 >= base_g)
+            w3 = n3 & (h3 >= base_g)
+            w4 = n4 & (h4 >= base_g)
+            w5 = n5 & (h5 >= base_g)
+            w6 = n6 & (h6 >= base_g)
+            w7 = n7 & (h7 >= base_g)
+            if w0 | w1 | w2 | w3 | w4 | w5 | w6 | w7:
+                if w0:
+                    _walk(state, a0, h0, base_g, t, prev, supported, lo)
+                if w1:
+                    _walk(state, a1, h1, base_g, t, prev, supported, lo)
+                if w2:
+                    _walk(state, a2, h2, base_g, t, prev, supported, lo)
+                if w3:
+                    _walk(state, a3, h3, base_g, t, prev, supported, lo)
+                if w4:
+                    _walk(state, a4, h4, base_g, t, prev, supported, lo)
+                if w5:
+                    _walk(state, a5, h5, base_g, t, prev, supported, lo)
+                if w6:
+                    _walk(state, a6, h6, base_g, t, prev, supported, lo)
+                if w7:
+                    _walk(state, a7, h7, base_g, t, prev, supported, lo)
         prev[k] = state[c + 1]
         state[c + 1] = base_g + k
         state[c] = tk

@@ -95,3 +95,15 @@ def test_one_pixel_wide_sensors(mode):
                          g.random(n) < 0.5)
         want = reference_mask(ev, size, 30, mode == "causal")
         np.testing.assert_array_equal(filter_events(ev, size, BufferParams(tau_min_us=30, mode=mode)), want)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_times_at_the_int64_floor(mode):
+    # the "never fired" sentinel is int64 min: a window starting exactly there must not count it
+    size = SensorSize(4, 4)
+    tau = 10
+    t0 = np.iinfo(np.int64).min
+    t = np.array([t0, t0, t0 + 3, t0 + tau, t0 + tau, t0 + 2 * tau + 1, t0 + 2 * tau + 1], np.int64)
+    ev = make_events([1, 2, 0, 1, 3, 2, 2], [1, 1, 0, 2, 3, 2, 3], t, np.ones(t.size, bool))
+    want = reference_mask(ev, size, tau, mode == "causal")
+    np.testing.assert_array_equal(filter_events(ev, size, BufferParams(tau_min_us=tau, mode=mode)), want)
