@@ -29,10 +29,16 @@ def plugin(tmp_path_factory):
     code = readme_example()
     assert 25 <= len(code.splitlines()) <= 45  # "about 30 lines"
     (folder / "neighbour_delay.py").write_text(code)
+    from evedge.detector.protocols import METHODS
+
+    assert TARGET not in METHODS.names()
     sys.path.insert(0, str(folder))
     yield folder
     sys.path.remove(str(folder))
     sys.modules.pop("neighbour_delay", None)
+    # METHODS.get registers the target on first use: leave no plug-in behind for the tests that follow
+    METHODS._entries.pop(TARGET, None)
+    assert TARGET not in METHODS.names()
 
 
 def _run(args):
