@@ -311,7 +311,21 @@ def test_a_cluster_needs_at_least_one_worker():
 def test_run_tasks_bounds_the_tasks_in_flight(client):
     from evedge.parallel import run_tasks
 
-    got = list(run_tasks(client, abs, [-k for k in range(25)], max_in_flight=3, progress=False))
+    class Counting:
+        """The client, counting the tasks submitted to it."""
+
+        submitted = 0
+
+        def submit(self, *args, **kw):
+            Counting.submitted += 1
+            return client.submit(*args, **kw)
+
+    got, in_flight = [], []
+    for item in run_tasks(Counting(), abs, [-k for k in range(25)], max_in_flight=3, progress=False):
+        # submitted but not yet handed over, besides the one just handed over: 3 until the items run out
+        in_flight.append(Counting.submitted - len(got) - 1)
+        got.append(item)
+    assert in_flight == [3] * 22 + [2, 1, 0]
     assert sorted(i for i, _, _ in got) == list(range(25))
     assert all(r == i and e is None for i, r, e in got)
     with pytest.raises(ValueError, match="max_in_flight must be an integer >= 1"):
