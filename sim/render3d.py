@@ -43,7 +43,7 @@ import numpy as np
 
 from ._gl import ZFAR_M, ZNEAR_M, _delete_offscreen, _import_pyrender, _single_sample_renderer_class, opencv_to_gl_pose
 from ._motion_field import image_speed_bound, motion_field
-from ._scanline import _accumulate_pieces, _prefix_rows
+from ._scanline import _piece_jumps, _prefix_rows
 from ._visibility import _cast_rays_kernel, _left_border_kernel, _point_depth_kernel, _visible_pieces_kernel
 from .boxes import FACE_ORDER, Box3D, box_edges, box_faces
 from .trajectory import CameraTrajectory, KeyframeTrajectory, _finite, _Trajectory, rotation_from_rpy
@@ -497,19 +497,7 @@ class MeshRenderer:
         """
         height, width = self.height, self.width
         p, q, left, right = self._pieces_at(t_s, True)
-        values = self._lut
-        acc = np.zeros((height, width + 1))
-        u0, v0, u1, v1 = p[:, 0], p[:, 1], q[:, 0], q[:, 1]
-        sloped = v0 != v1  # horizontal pieces are crossed by no scanline
-        # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
-        up = v1 < v0
-        jump = np.where(up, values[left] - values[right], values[right] - values[left])
-        # each piece from its upper end (smaller v) to its lower end
-        su0, sv0 = np.where(up, u1, u0)[sloped], np.where(up, v1, v0)[sloped]
-        su1, sv1 = np.where(up, u0, u1)[sloped], np.where(up, v0, v1)[sloped]
-        _accumulate_pieces(acc, width, height, np.ascontiguousarray(su0), np.ascontiguousarray(sv0),
-                           np.ascontiguousarray(su1), np.ascontiguousarray(sv1),
-                           np.ascontiguousarray(jump[sloped], dtype=np.float64))
+        acc = _piece_jumps(p, q, left, right, self._lut, width, height)
         out = np.empty((height, width))
         _prefix_rows(acc, self._left_border(t_s, p, q), width, out)  # clipped to [0, 1]
         return out
