@@ -181,16 +181,10 @@ class ReferenceRenderer(MeshRenderer):
         return np.clip(self._exact_intensity(t_s), 0.0, 1.0)
 
     def _exact_intensity(self, t_s: float) -> np.ndarray:
-        """Exact box-filtered (area-averaged) intensity, by scanline accumulation of jumps.
-
-        Along a row, the image is the value at its left border plus the jumps across the
-        visible discontinuities crossed so far; integrating over the pixel square gives each
-        piece's exact contribution in closed form (as font rasterisers accumulate coverage).
-        """
-        height, width = self.height, self.width
+        """The left border's value plus the numpy prefix sum of each row's jumps (unclipped)."""
         p, q, left, right = self._pieces_at(t_s, True)
-        acc = _piece_jumps(p, q, left, right, self._lut, width, height)
-        return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :width]
+        acc = _piece_jumps(p, q, left, right, self._lut, self.width, self.height)
+        return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :self.width]
 
     def _left_border(self, t_s: float, p: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Mean intensity along the left image border ``u = -0.5`` over each row (H,)."""
