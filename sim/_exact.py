@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from ._coverage import _HALF_DIAG, _disk_box_area, _stripe_dark_fraction
-from ._events import _half_normal
+from ._events import _first_step, _half_normal
 
 
 @njit(cache=True)
@@ -306,13 +306,8 @@ def _crossing_levels(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, fill, ca
         lr = lref[i]
         cp = cpos[i]
         cn = cneg[i]
-        if l1 >= lr + cp:
-            on = True
-            step = cp
-        elif l1 <= lr - cn:
-            on = False
-            step = -cn
-        else:
+        on, step = _first_step(l1, lr, cp, cn)
+        if step == 0.0:
             continue
         while (l1 >= lr + step) if on else (l1 <= lr + step):
             lr += step
