@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._coverage import _HALF_DIAG, _disk_box_area, _stripe_dark_fraction
+from ._coverage import _HALF_DIAG, _disk_pixel_coverage, _stripe_dark_fraction
 from ._events import _first_step, _half_normal
 
 
@@ -168,13 +168,7 @@ def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values
             mx = center_x + c * dx - sn * dy + sx
             my = center_y + sn * dx + c * dy + sy
             r = radii[k]
-            d = math.sqrt((x - mx) ** 2 + (y - my) ** 2)
-            if d + _HALF_DIAG <= r:
-                cov = 1.0
-            elif d - _HALF_DIAG >= r:
-                cov = 0.0
-            else:
-                cov = min(1.0, max(0.0, _disk_box_area(mx, my, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)))
+            cov = _disk_pixel_coverage(x, y, mx, my, r)
             if cov > 0.0:
                 value += cov * (circle_values[k] - background)
         if clip:
