@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 case "${1:-}" in
-  demo) shift; bash scripts/setup.sh; exec .venv/bin/evedge demo "$@" ;;
+  demo) shift; bash scripts/setup.sh; exec .venv/bin/evedge demo --overwrite "$@" ;;
   test) shift; bash scripts/setup.sh; exec .venv/bin/python -m pytest "$@" ;;
   setup) bash scripts/setup.sh ;;
   *) echo "usage: ./run.sh demo|test|setup [args passed on]" >&2; exit 2 ;;

@@ -11,10 +11,26 @@ import os
 import click
 
 
+def _overwrite(ctx, param, value):
+    """Eager, so that the output check in ``_out_dir`` sees it whatever the order on the command line."""
+    ctx.meta["evedge_overwrite"] = bool(value)
+    return value
+
+
 def _out_dir(ctx, param, value):
-    """Create the output directory up front: an unusable path is a usage error, not a traceback after the run."""
+    """Create the output directory up front: an unusable path is a usage error, not a traceback after the run.
+
+    An existing, non-empty output is refused unless --overwrite is given (then announced).
+    """
     if value is None:
         return None
+    from evedge._output import OutputExistsError, check_output
+
+    try:
+        if check_output(value, overwrite=ctx.meta.get("evedge_overwrite", False)):
+            click.echo(f"replacing the earlier output in {value} (file by file)", err=True)
+    except OutputExistsError as err:
+        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
     try:
         value.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -41,6 +57,8 @@ def _scene(ctx, param, value):
 _OUT = click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
                     callback=_out_dir, help="Output directory.")
 _QUICK = click.option("--quick", is_flag=True, help="Reduced sizes (as in the demo).")
+_OVERWRITE = click.option("--overwrite", is_flag=True, is_eager=True, expose_value=False, callback=_overwrite,
+                          help="Replace an existing, non-empty output directory.")
 _NOPROG = click.option("--no-progress", is_flag=True, help="Hide progress bars.")
 _SEED = click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of simulations and RANSAC study.")
 def _methods(ctx, param, values):
@@ -67,7 +85,17 @@ _DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor
                              "clear the pixel behind each event (primary); lifetime_only: nothing cleared.")
 
 
-@click.group()
+class _Group(click.Group):
+    """A failed write (a full disk, a vanished folder) is one error line, not a traceback."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except OSError as err:
+            raise click.ClickException(f"cannot write the output: {err}") from None
+
+
+@click.group(cls=_Group)
 def bench() -> None:
     """The paper's experiments: metrics, figures, tables and an HTML report."""
 
@@ -75,6 +103,19 @@ def bench() -> None:
 from .sweep_cli import sweep  # noqa: E402  (its heavy imports happen when it runs)
 
 bench.add_command(sweep)
+
+
+def _experiment(*, seed: bool = True):
+    """``@bench.command()`` with the options every experiment takes: -o/--out, --overwrite, --quick, --no-progress
+    (and --seed)."""
+    common = (_OUT, _OVERWRITE, _QUICK, _NOPROG, _SEED) if seed else (_OUT, _OVERWRITE, _QUICK, _NOPROG)
+
+    def decorate(f):
+        for option in reversed(common):  # the same order as the decorators stacked on top of f
+            f = option(f)
+        return bench.command()(f)
+
+    return decorate
 
 
 def _summary(results: dict, t0: float) -> None:
@@ -90,11 +131,7 @@ def _summary(results: dict, t0: float) -> None:
     click.echo(f"report: {Path(results['report']).resolve()}")
 
 
-@bench.command()
-@_OUT
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @click.option("--only", "only", multiple=True, type=click.Choice(["ransac", "lifetime", "similarity", "real",
                                                                     "qualitative"]),
               help="Run only these experiments (repeatable; default all).")
@@ -119,11 +156,7 @@ def paper(out: Path, quick: bool, no_progress: bool, seed: int, only: tuple, sce
         sys.exit(1)
 
 
-@bench.command()
-@_OUT
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @click.option("--repetitions", type=click.IntRange(min=1), default=None, help="Windows per noise level (default 1000, quick 100).")
 def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: int | None) -> None:
     """RANSAC inlier F-measure and lifetime error vs. timestamp noise (paper fig. 7)."""
@@ -137,11 +170,7 @@ def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: in
     click.echo("\n".join(res["figures"]))
 
 
-@bench.command()
-@_OUT
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @_DATA
 @click.option("--scene", default="stripes", show_default=True, callback=_scene,
               help="Scene simulated for the simulated dataset: a shipped scene's name or a TOML file.")
@@ -153,11 +182,7 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int, data_dir, sce
     click.echo("\n".join(res["figures"]))
 
 
-@bench.command()
-@_OUT
-@_QUICK
-@_NOPROG
-@_SEED
+@_experiment()
 @click.option("--scene", default="shapes_translation", show_default=True, callback=_scene,
               help="A shipped scene's name or a scene TOML file.")
 @_DISPLAY
@@ -181,10 +206,7 @@ def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str,
     click.echo("\n".join(res["figures"] + [str(p) for p in paths]))
 
 
-@bench.command()
-@_OUT
-@_QUICK
-@_NOPROG
+@_experiment(seed=False)
 @_DATA
 def qualitative(out: Path, quick: bool, no_progress: bool, data_dir) -> None:
     """Grey, Canny, proposed, Mueggler, 1 ms and 30 ms side by side (paper figs. 1, 8), on slider_depth."""
@@ -194,10 +216,7 @@ def qualitative(out: Path, quick: bool, no_progress: bool, data_dir) -> None:
     click.echo("\n".join(res["figures"]))
 
 
-@bench.command()
-@_OUT
-@_QUICK
-@_NOPROG
+@_experiment(seed=False)
 @click.option("--path", type=click.Path(exists=True, path_type=Path), default=None,
               help="Recording with frames (default DATA/slider_depth).")
 @_DISPLAY
@@ -224,6 +243,7 @@ def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays:
 @click.command()
 @click.option("-o", "--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("demo_out"),
               show_default=True, callback=_out_dir, help="Output directory.")
+@_OVERWRITE
 @_NOPROG
 @_SEED
 def demo(out: Path, no_progress: bool, seed: int) -> None:
@@ -232,7 +252,10 @@ def demo(out: Path, no_progress: bool, seed: int) -> None:
 
     t0 = time.perf_counter()
     click.echo(f"evedge demo: running the paper's experiments (reduced sizes) into {out}/")
-    results = run_paper(out, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
+    try:
+        results = run_paper(out, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
+    except OSError as err:
+        raise click.ClickException(f"cannot write the output: {err}") from None
     _summary(results, t0)
     if results.get("errors"):
         sys.exit(1)

@@ -382,9 +382,10 @@ def run_paper(out_dir, *, quick: bool = False, progress: bool = True, seed: int 
     results["figures"] = figures
     notes = (list(NOTES) + [f"Experiment {k} FAILED: {v}" for k, v in results["errors"].items()]
              + [f"Skipped {k}: {v}" for k, v in results["skipped"].items()])
-    write_json_atomic(out_dir / "results.json", results)
+    # the report first: results.json appears only once the run's output is complete
     table.save(out_dir / "results")
     report = write_report(out_dir / "report.html", results, figures=figures, notes=notes, board=board)
+    write_json_atomic(out_dir / "results.json", results)
     results["report"] = str(report)
     results["table"] = table
     return results

@@ -1,65 +1,134 @@
-"""numba kernels of the event buffer (see :mod:`evedge.detector.buffer`)."""
+"""numba kernels of the event buffer (see :mod:`evedge.detector.buffer`).
+
+Per-pixel state: one flat int64 array ``state`` laid out as ``(2, height + 2, width + 2, 2)``
+(:func:`new_state`): polarity plane by padded row by padded column, two fields per
+pixel side by side (a row of three neighbours is 48 contiguous bytes):
+
+``[..., 0]`` (``last_t``)
+    timestamp of the pixel's latest event, :data:`NEVER` when none; the one-pixel
+    border never fires, so the 8-neighbour test needs no bounds checks.
+``[..., 1]`` (``head_g``)
+    global index of the pixel's newest event not yet reached by a neighbour's
+    backward walk, -1 when none (every event of the pixel has been walked).
+"""
 
 import numpy as np
 from numba import njit
 
-_NEVER = np.iinfo(np.int64).min
+NEVER = np.iinfo(np.int64).min
 
 
 @njit(cache=True)
-def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, covered_g, width, height, tau_us,
-                 causal):
-    """Mark support for events ``n_old..`` of the arrays (events ``0..n_old`` are carried over).
+def new_state(width, height):
+    """Empty per-pixel state of the kernels (no event seen), flat: ``2 * (height + 2) * (width + 2) * 2`` int64."""
+    state = np.empty(4 * (height + 2) * (width + 2), dtype=np.int64)
+    for i in range(0, state.shape[0], 2):
+        state[i] = NEVER
+        state[i + 1] = -1
+    return state
+
+
+@njit(cache=True, inline="always")
+def _walk(state, c, g, base_g, t, prev, supported, lo):
+    """Mark the unwalked events of the pixel at ``c``, newest ``g``, no older than ``lo``; then none is left unwalked.
+
+    ``g`` is unreleased and within the window (the caller checked ``last_t >= lo``).
+    An unwalked event older than ``lo`` can no longer be supported by a later event
+    (time-sorted stream): dropping it from the walk changes no decision.
+    """
+    state[c + 1] = -1
+    j = g - base_g
+    supported[j] = True
+    g = prev[j]
+    while g >= base_g:
+        j = g - base_g
+        if t[j] < lo:
+            break
+        supported[j] = True
+        g = prev[j]
+
+
+@njit(cache=True)
+def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, height, tau_us, causal):
+    """Decide support for events ``n_old..`` of the arrays (events ``0..n_old`` are carried over).
 
     Arrays ``x, y, t, p, prev, supported`` hold the unreleased events, the first of which
-    has global index ``base_g``. ``last_t`` and ``head_g`` are per pixel and polarity
-    (index ``(p * height + y) * width + x``): the latest timestamp and the global index of
-    the latest event there. ``prev`` chains the events of one pixel and polarity.
-    ``covered_g`` (per pixel and polarity, -1 = none) is the global index of the newest
-    event of that pixel reached by an earlier backward walk: that walk marked every
-    event of the pixel up to it no older than its own ``t - tau``, which is no later
-    than the present walk's (time-sorted stream), so the present walk stops there
-    (the marks are the same; on dense edges most of the walking is saved).
-    Returns nothing; updates ``supported``, ``prev``, ``last_t``, ``head_g``, ``covered_g`` in place.
+    has global index ``base_g``; ``state`` is :func:`new_state`'s array.
+    ``prev`` chains the unwalked events of one pixel and polarity (newest first).
+    Event ``k`` is supported by a neighbour fired within tau before it (``supported[k]``
+    is set, not or-ed: ``prev`` and ``supported`` of events ``n_old..`` need no
+    initialisation) and, in the buffered form, it supports every unwalked event of
+    each such neighbour within tau before it: a neighbour's events earlier than the
+    last walk there were either marked by that walk or are older than its window,
+    hence older than this event's (the stream is time-sorted).
+    Returns nothing; updates ``supported``, ``prev`` and ``state`` in place.
     """
+    row = 2 * (width + 2)  # one padded row of (last_t, head_g) pairs
+    plane = (height + 2) * row
     n = x.shape[0]
     for k in range(n_old, n):
-        xk = x[k]
-        yk = y[k]
         tk = t[k]
-        plane = p[k] * height
         lo = tk - tau_us
-        n_support = 0
-        x0 = max(xk - 1, 0)
-        x1 = min(xk + 1, width - 1)
-        # the 3x3 neighbourhood over clipped ranges; the support test is branch-free
-        # (whether a neighbour fired within tau is unpredictable), the walk is not
-        for yy in range(max(yk - 1, 0), min(yk + 1, height - 1) + 1):
-            row = (plane + yy) * width
-            for xx in range(x0, x1 + 1):
-                q = row + xx
-                lt = last_t[q]
-                # a neighbour (not the pixel itself) fired within tau before (or at) this event
-                near = (lt >= lo) & (lt != _NEVER) & ((xx != xk) | (yy != yk))
-                n_support += near
-                if near and not causal:
-                    # ...and this event supports every unreleased event of that
-                    # neighbour within tau before it
-                    g = head_g[q]
-                    stop = max(covered_g[q], base_g - 1)
-                    covered_g[q] = g
-                    while g > stop:
-                        j = g - base_g
-                        if t[j] < lo:
-                            break
-                        supported[j] = True
-                        g = prev[j]
-        if n_support > 0:
-            supported[k] = True
-        pix = (plane + yk) * width + xk
-        prev[k] = head_g[pix]
-        head_g[pix] = base_g + k
-        last_t[pix] = tk
+        # "fired within tau" is last_t >= lo and last_t != NEVER: one comparison with lo_n
+        lo_n = lo + (lo == NEVER)
+        c = p[k] * plane + (y[k] + 1) * row + 2 * (x[k] + 1)
+        # the 8 neighbours (not the pixel itself)
+        a0 = c - row - 2
+        a1 = c - row
+        a2 = c - row + 2
+        a3 = c - 2
+        a4 = c + 2
+        a5 = c + row - 2
+        a6 = c + row
+        a7 = c + row + 2
+        n0 = state[a0] >= lo_n
+        n1 = state[a1] >= lo_n
+        n2 = state[a2] >= lo_n
+        n3 = state[a3] >= lo_n
+        n4 = state[a4] >= lo_n
+        n5 = state[a5] >= lo_n
+        n6 = state[a6] >= lo_n
+        n7 = state[a7] >= lo_n
+        supported[k] = n0 | n1 | n2 | n3 | n4 | n5 | n6 | n7
+        if not causal:
+            # ...and this event supports the unwalked events of those neighbours within tau
+            # (rare: each event is walked at most once, so test all eight before branching)
+            h0 = state[a0 + 1]
+            h1 = state[a1 + 1]
+            h2 = state[a2 + 1]
+            h3 = state[a3 + 1]
+            h4 = state[a4 + 1]
+            h5 = state[a5 + 1]
+            h6 = state[a6 + 1]
+            h7 = state[a7 + 1]
+            w0 = n0 & (h0 >= base_g)
+            w1 = n1 & (h1 >= base_g)
+            w2 = n2 & (h2 >= base_g)
+            w3 = n3 & (h3 >= base_g)
+            w4 = n4 & (h4 >= base_g)
+            w5 = n5 & (h5 >= base_g)
+            w6 = n6 & (h6 >= base_g)
+            w7 = n7 & (h7 >= base_g)
+            if w0 | w1 | w2 | w3 | w4 | w5 | w6 | w7:
+                if w0:
+                    _walk(state, a0, h0, base_g, t, prev, supported, lo)
+                if w1:
+                    _walk(state, a1, h1, base_g, t, prev, supported, lo)
+                if w2:
+                    _walk(state, a2, h2, base_g, t, prev, supported, lo)
+                if w3:
+                    _walk(state, a3, h3, base_g, t, prev, supported, lo)
+                if w4:
+                    _walk(state, a4, h4, base_g, t, prev, supported, lo)
+                if w5:
+                    _walk(state, a5, h5, base_g, t, prev, supported, lo)
+                if w6:
+                    _walk(state, a6, h6, base_g, t, prev, supported, lo)
+                if w7:
+                    _walk(state, a7, h7, base_g, t, prev, supported, lo)
+        prev[k] = state[c + 1]
+        state[c + 1] = base_g + k
+        state[c] = tk
 
 
 @njit(cache=True)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from evedge._validate import check_positive  # noqa: F401  (the detector's parameter classes import it from here)
 from evedge.events import SensorSize, validate_events
 
 from .result import LIFETIME_DTYPE
@@ -59,17 +60,3 @@ def columns(events: np.ndarray):
         np.ascontiguousarray(events["t"], dtype=np.int64),
         np.ascontiguousarray(events["p"], dtype=np.int64),
     )
-
-
-def check_positive(owner: str, name: str, value, *, integer: bool = False, allow_zero: bool = False) -> None:
-    """Raise a clear error unless ``value`` is a finite positive (or non-negative) number."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{owner}.{name} must be a number, got {value!r}")
-    if integer and not float(value).is_integer():
-        raise TypeError(f"{owner}.{name} must be an integer, got {value!r}")
-    # Python ints may exceed every float/int64 (np.isfinite would fail on them); they are finite
-    if not isinstance(value, (int, np.integer)) and not np.isfinite(value):
-        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
-    if value < 0 or (value == 0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{owner}.{name} must be {bound}, got {value!r}")

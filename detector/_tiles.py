@@ -41,10 +41,9 @@ import numpy as np
 from numba import njit, prange
 
 from ._atomic import _claim, _load_acquire, _sched_yield, _store_release
-from ._buffer_kernels import _buffer_scan
+from ._buffer_kernels import _buffer_scan, new_state
 from ._intra_kernels import _intra_stream, _scratch
 
-_NEVER = np.iinfo(np.int64).min
 _DEBUG = False
 _HALO = 6
 
@@ -90,10 +89,9 @@ def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_
             ys[j] = y[k] - lo[s]
             ts[j] = t[k]
             ps[j] = p[k]
-        cells = 2 * rows[s] * width
-        sup = np.zeros(n, np.bool_)
-        _buffer_scan(xs, ys, ts, ps, np.full(n, -1, np.int64), sup, 0, 0, np.full(cells, _NEVER, np.int64),
-                     np.full(cells, -1, np.int64), np.full(cells, -1, np.int64), width, rows[s], tau_us, causal)
+        sup = np.empty(n, np.bool_)
+        _buffer_scan(xs, ys, ts, ps, np.empty(n, np.int64), sup, 0, 0, new_state(width, rows[s]), width, rows[s],
+                     tau_us, causal)
         for j in range(n):
             k = sel[j]
             if own_lo[s] <= y[k] < own_hi[s]:

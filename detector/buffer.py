@@ -34,9 +34,9 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import _buffer_scan, _n_decided
+from ._buffer_kernels import _buffer_scan, _n_decided, new_state
 from ._tiles import check_n_tiles, filter_tiled
-from ._checks import NEVER_US, check_events, check_not_before, check_positive, check_sensor_size, columns
+from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
@@ -98,9 +98,7 @@ class EventBuffer:
     def reset(self) -> None:
         """Forget every event seen."""
         w, h = self.sensor_size.width, self.sensor_size.height
-        self._last_t = np.full(2 * w * h, NEVER_US, dtype=np.int64)
-        self._head_g = np.full(2 * w * h, -1, dtype=np.int64)
-        self._covered_g = np.full(2 * w * h, -1, dtype=np.int64)
+        self._state = new_state(w, h)  # per pixel and polarity, padded border (see _buffer_kernels)
         # the unreleased events are slots [_start, _end) of growable arrays (the events
         # and their plain columns, converted once on arrival): a chunk costs O(chunk),
         # not O(events waiting), however long the support window keeps them
@@ -149,15 +147,13 @@ class EventBuffer:
         self._ev[a:b] = events
         for col, values in zip(self._cols, columns(events)):
             col[a:b] = values
-        self._prev[a:b] = -1
-        self._supported[a:b] = False
-        self._end = b
+        self._end = b  # prev and supported of the new slots are set by the kernel
         sl = slice(self._start, b)
         x, y, t, p = (col[sl] for col in self._cols)
         tau = self.params.tau_min_us
         causal = self.params.mode == "causal"
-        _buffer_scan(x, y, t, p, self._prev[sl], self._supported[sl], a - self._start, self._base_g, self._last_t,
-                     self._head_g, self._covered_g, self.sensor_size.width, self.sensor_size.height, tau, causal)
+        _buffer_scan(x, y, t, p, self._prev[sl], self._supported[sl], a - self._start, self._base_g, self._state,
+                     self.sensor_size.width, self.sensor_size.height, tau, causal)
         self._last_time = int(t[-1])
         return self._release(_n_decided(t, self._supported[sl], self._last_time, tau, causal))
 
@@ -222,10 +218,9 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
     n = events.shape[0]
     if n_tiles > 1:
         return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles)
-    supported = np.zeros(n, dtype=bool)
-    _buffer_scan(x, y, t, p, np.full(n, -1, dtype=np.int64), supported, 0, 0,
-                 np.full(2 * w * h, NEVER_US, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
-                 np.full(2 * w * h, -1, dtype=np.int64), w, h, params.tau_min_us, params.mode == "causal")
+    supported = np.empty(n, dtype=bool)  # every entry set by the kernel, as is prev
+    _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, new_state(w, h), w, h,
+                 params.tau_min_us, params.mode == "causal")
     return supported
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import tempfile
 from pathlib import Path
 
 import click
@@ -17,8 +16,26 @@ from evedge.video import edge_png
 _CHUNK = 100_000
 #: Most memory the edge frames (one byte per pixel) may take before --fps is refused as a mistake.
 _MAX_FRAME_BYTES = 4 * 2**30
-#: Names of the PNG frames this command writes (and may replace on a rerun).
+#: The largest float below 2**63: frame times at or above it do not fit int64 microseconds.
+_LAST_FLOAT_US = float(np.nextafter(2.0**63, 0))
+#: Memory of a method's per-pixel state by kind (lifetime estimators: buffer, SAE, estimator, edge image;
+#: edge methods: accumulation), bytes per pixel,
+#: and of their per-event outputs (lifetimes, flow, validity, buffer links), bytes per event.
+_STATE_BYTES_PER_PIXEL = {"estimator": 160, "edges": 16}
+_BYTES_PER_EVENT = 96
+#: What OUT may hold for detect to replace it (with --overwrite).
+_OUTPUT_NAMES = ("detection.h5", "edges")
 _PNG_NAME = re.compile(r"edges_\d{6}_-?\d+us\.png")
+
+
+def _check_replaceable(out: Path) -> None:
+    """An OUT to replace must hold only what detect writes: no links, no other files."""
+    edges = out / "edges"
+    if edges.is_dir() and not edges.is_symlink():
+        for entry in edges.iterdir():
+            if entry.is_symlink() or not _PNG_NAME.fullmatch(entry.name):
+                raise click.ClickException(f"{entry} was not written by evedge detect: {out} is not replaced; "
+                                           f"move it away or choose another output folder")
 
 
 def _times(ctx, param, value):
@@ -31,8 +48,9 @@ def _times(ctx, param, value):
                                  ctx=ctx, param=param) from None
     if times.size == 0:
         raise click.BadParameter("no instant given", ctx=ctx, param=param)
-    if np.any(np.diff(times) < 0):
-        i = int(np.flatnonzero(np.diff(times) < 0)[0])
+    decrease = times[1:] < times[:-1]  # not np.diff: -5e18, 5e18 would wrap int64
+    if np.any(decrease):
+        i = int(np.flatnonzero(decrease)[0])
         raise click.BadParameter(f"instants must be non-decreasing, got {times[i]} then {times[i + 1]}",
                                  ctx=ctx, param=param)
     return times
@@ -52,24 +70,9 @@ def _frame_times(events, fps, times):
         return np.empty(0, np.int64)
     step = 1e6 / fps
     t0, t1 = int(events["t"][0]), int(events["t"][-1])
-    return np.rint(np.arange(t0 + step, t1 + step / 2, step)).astype(np.int64)
-
-
-def _atomic(path: Path, write) -> None:
-    """Write through a temp file in the target's directory, then rename over it."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    # mkstemp makes the file private (0600); give it the mode a plain open() would
-    mask = os.umask(0o022)
-    os.umask(mask)
-    os.fchmod(fd, 0o666 & ~mask)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    ts = np.rint(np.arange(t0 + step, t1 + step / 2, step))
+    # near the int64 limit a float time rounds to 2**63, which would wrap to -2**63 us
+    return ts[ts < _LAST_FLOAT_US].astype(np.int64)
 
 
 def _parse_value(text: str):
@@ -206,20 +209,27 @@ def _versions() -> dict:
 
 
 def _write_pngs(folder: Path, times, frames, quiet) -> None:
+    """Write the frames into ``folder`` (a fresh folder inside the staged output)."""
     from PIL import Image
     from tqdm import tqdm
 
-    folder.mkdir(parents=True, exist_ok=True)
-    written = set()
+    folder.mkdir()
     for i, (t, img) in enumerate(tqdm(list(zip(times, frames)), desc="PNG", unit="frame", disable=quiet)):
-        target = folder / f"edges_{i:06d}_{int(t)}us.png"
         # the report's convention: black edges on white
-        _atomic(target, lambda tmp, img=img: Image.fromarray(edge_png(np.asarray(img, bool))).save(tmp, format="PNG"))
-        written.add(target.name)
-    # A rerun into the same folder must not leave frames of an earlier run beside the new ones.
-    for old in folder.iterdir():
-        if _PNG_NAME.fullmatch(old.name) and old.name not in written:
-            old.unlink()
+        Image.fromarray(edge_png(np.asarray(img, bool))).save(folder / f"edges_{i:06d}_{int(t)}us.png", format="PNG")
+
+
+def _check_memory(n_events: int, size, n_frames: int, kind: str, method: str) -> None:
+    """Refuse a run whose state, per-event outputs and frames cannot fit, before any work."""
+    from evedge._resources import memory_shortfall
+
+    pixels = size.width * size.height
+    needed = pixels * _STATE_BYTES_PER_PIXEL[kind] + n_events * _BYTES_PER_EVENT + 2 * n_frames * pixels
+    short = memory_shortfall(needed, f"--method {method} on {n_events} events of a {size.width}x{size.height} "
+                                     f"sensor with {n_frames} edge frames")
+    if short:
+        raise click.ClickException(f"{short}; a smaller --sensor, fewer frames (--fps, --times) or a shorter "
+                                   f"recording would fit")
 
 
 class _DetectCommand(click.Command):
@@ -284,7 +294,8 @@ def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> N
                    "Mueggler's display), the same as the primary display of the report of evedge bench; "
                    "lifetime_only: a pixel is edge while its newest event lives (a burst from its first event), "
                    "nothing cleared.")
-@click.option("--seed", type=click.IntRange(min=0), default=None, help="Seed of the method (same as --param seed=N).")
+@click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
+              help="Seed of the method (same as --param seed=N).")
 @click.option("--embed-events/--no-embed-events", default=True, show_default=True,
               help="Store the events in detection.h5 (else only the source's sha256 and absolute path).")
 @click.option("--video", "video", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -296,9 +307,10 @@ def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> N
 @click.option("--compress/--no-compress", "compress", default=False, show_default=True,
               help="gzip the per-event columns of detection.h5 (~2x smaller, ~0.9 us per event; edge frames "
                    "are always compressed).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing OUT (a previous detect output).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def detect(events_file, out, method, param_items, config, fps, times, at_frames, window_ms, n_events, sensor, sort, use_buffer,
-           display, seed, embed_events, video, video_colour, write_png, compress, quiet):
+           display, seed, embed_events, video, video_colour, write_png, compress, overwrite, quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads) with any registered method.
 
     Writes OUT/detection.h5, a self-describing file (format evedge-detection:
@@ -306,8 +318,11 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     vx_px_s, vy_px_s, valid and kept for lifetime methods, edge frames with
     their times, the method, every parameter, the display and the versions;
     read it with evedge info, evedge grade or evedge.io.read_detection), and
-    one PNG per edge frame in OUT/edges/.
+    one PNG per edge frame in OUT/edges/. Both are written into a temporary
+    folder beside OUT and swapped in together at the end; an existing OUT is
+    replaced only with --overwrite.
     """
+    from evedge._output import OutputExistsError, check_output
     from evedge.io import read_events
     from evedge.io.detection import Detection, file_sha256, write_detection
     from evedge.events import Frames
@@ -343,6 +358,13 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     except (TypeError, ValueError) as err:
         raise click.BadParameter(str(err), param_hint="'--param' / '--config'") from None
     try:
+        replacing = check_output(out, overwrite=overwrite)
+    except OutputExistsError as err:
+        raise click.ClickException(str(err)) from None
+    if replacing:
+        _check_replaceable(out)
+
+    try:
         rec = read_events(events_file, sensor_size=sensor, sort=sort)
     except (ValueError, TypeError, OSError) as err:
         raise click.ClickException(str(err)) from None
@@ -360,6 +382,7 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
                 f"{n_frames * size.width * size.height / 2**30:.1f} GiB; lower --fps or give --times",
                 param_hint="'--fps'")
     frame_t = _frame_times(events, fps, times)
+    _check_memory(events.size, size, frame_t.size, entry.kind, method)
     if frame_t.size == 0 and events.size:
         span = int(events["t"][-1]) - int(events["t"][0])
         click.echo(f"Warning: no edge frame: the events span {span} us, less than one frame period "
@@ -380,15 +403,24 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
             "events_embedded": bool(embed_events), "frame_times": "--at-frames" if at_frames else "--times" if times is not None else f"--fps {fps:g}",
             "versions": _versions(), "command": "evedge detect"}
     det = Detection(size, events if embed_events else None, table, Frames(frame_t, np.asarray(frames, bool)), meta)
+    from evedge._output import staged_folder
+
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        write_detection(out / "detection.h5", det, compress_per_event=compress)
-        if write_png:
-            _write_pngs(out / "edges", frame_t, frames, quiet)
+        with staged_folder(out, allowed=_OUTPUT_NAMES) as stage:
+            write_detection(stage / "detection.h5", det, compress_per_event=compress)
+            if write_png:
+                _write_pngs(stage / "edges", frame_t, frames, quiet)
+    except OutputExistsError as err:
+        raise click.ClickException(str(err)) from None
+    except OSError as err:
+        raise click.ClickException(f"cannot write the output {out} (nothing of this run was kept): {err}") from None
+    if replacing:
+        click.echo(f"replaced the earlier output in {out}", err=True)
+    try:
         if video is not None:
             _write_video(video, rec, det, table, kept, video_colour, fps, quiet)
     except OSError as err:
-        raise click.ClickException(f"cannot write the output into {out}: {err}") from None
+        raise click.ClickException(f"cannot write the video {video}: {err}") from None
     msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"
     if table is not None:
         msg += f"; {int(kept.sum())} passed to the estimator, {int(table['valid'].sum())} with a lifetime"

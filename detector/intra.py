@@ -232,7 +232,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
+from evedge._validate import check_bool, check_positive
+
+from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream, _scratch
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
@@ -361,8 +363,7 @@ class IntraParams:
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
         for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise TypeError(f"{own}.{name} must be a bool, got {getattr(self, name)!r}")
+            check_bool(own, name, getattr(self, name))
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",

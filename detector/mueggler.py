@@ -132,6 +132,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from evedge._validate import check_bool, check_integer, check_real
 from evedge.events import SensorSize, validate_events
 
 from ._mueggler_kernels import NEVER_FIRED, _mueggler_kernel
@@ -140,19 +141,6 @@ from .protocols import METHODS
 from .result import LIFETIME_DTYPE
 
 __all__ = ["MuegglerParams", "MuegglerLifetime", "estimate_lifetimes_mueggler"]
-
-
-def _check_real(name: str, value, low: float, high: float, *, low_open: bool, high_open: bool) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"MuegglerParams.{name} must be a real number, got {value!r}")
-    v = float(value)
-    lo_bad = v <= low if low_open else v < low
-    hi_bad = v >= high if high_open else v > high
-    if not math.isfinite(v) or lo_bad or hi_bad:
-        lo = "(" if low_open else "["
-        hi = ")" if high_open else "]"
-        raise ValueError(f"MuegglerParams.{name} must be in {lo}{low}, {high}{hi}, got {value!r}")
-    return v
 
 
 @dataclass(frozen=True)
@@ -205,9 +193,9 @@ class MuegglerParams:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        own = "MuegglerParams"
         n = self.window_size_px
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-            raise TypeError(f"MuegglerParams.window_size_px must be an integer, got {n!r}")
+        check_integer(own, "window_size_px", n)
         if n < 3 or n % 2 == 0 or n > 31:
             raise ValueError(f"MuegglerParams.window_size_px must be odd and in 3..31, got {n}")
         object.__setattr__(self, "window_size_px", int(n))
@@ -221,15 +209,13 @@ class MuegglerParams:
             ("lambda_decay_per_us", 0.0, inf, False, True),
         ):
             object.__setattr__(
-                self, name, _check_real(name, getattr(self, name), low, high, low_open=lo_open, high_open=hi_open)
+                self, name, check_real(own, name, getattr(self, name), low, high, low_open=lo_open, high_open=hi_open)
             )
         for name in ("regularize", "per_polarity", "shift_prior_frame"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise TypeError(f"MuegglerParams.{name} must be a bool, got {getattr(self, name)!r}")
+            check_bool(own, name, getattr(self, name))
             object.__setattr__(self, name, bool(getattr(self, name)))
         s = self.seed
-        if isinstance(s, bool) or not isinstance(s, (int, np.integer)):
-            raise TypeError(f"MuegglerParams.seed must be an integer, got {s!r}")
+        check_integer(own, "seed", s)
         if not 0 <= int(s) < 2**64:
             raise ValueError(f"MuegglerParams.seed must be in [0, 2**64), got {s}")
         object.__setattr__(self, "seed", int(s))

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._validate import check_finite, check_positive
 from .events import EVENT_DTYPE, Frames, SensorSize, validate_events
 
 __all__ = ["CameraCalibration", "distort_points", "undistort_events", "undistort_frames", "undistortion_map"]
@@ -56,15 +57,9 @@ class CameraCalibration:
 
     def __post_init__(self) -> None:
         for name in ("fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-                raise TypeError(f"CameraCalibration.{name} must be a number, got {value!r}")
-            if not np.isfinite(value):
-                raise ValueError(f"CameraCalibration.{name} must be finite, got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, check_finite("CameraCalibration", name, getattr(self, name)))
         for name in ("fx_px", "fy_px"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"CameraCalibration.{name} must be > 0, got {getattr(self, name)!r}")
+            check_positive("CameraCalibration", name, getattr(self, name))
 
     @property
     def camera_matrix(self) -> np.ndarray:

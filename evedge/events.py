@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import check_integer
 from .sensors import SENSOR_MODELS
 
 #: The event dtype, identical to ``tonic.io.events_struct``.
@@ -35,8 +36,7 @@ class SensorSize:
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                raise TypeError(f"SensorSize.{name} must be an integer, got {value!r}")
+            check_integer("SensorSize", name, value)
             if not 1 <= int(value) <= 32767:
                 raise ValueError(f"SensorSize.{name} must be in 1..32767, got {value}")
             object.__setattr__(self, name, int(value))

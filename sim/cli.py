@@ -57,11 +57,17 @@ def _check_output(output: Path, fmt: str) -> None:
 @click.option("--refractory-us", type=click.FloatRange(min=0), default=None, help="Video/frames: refractory period.")
 @click.option("--noise-rate-hz", type=click.FloatRange(min=0, max=1e6), default=None,
               help="Video/frames: background activity per pixel.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing OUTPUT.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, fmt: str, sensor, video, frames_dir,
              timestamps, rate_hz, log_input, upsample, interpolation, contrast, contrast_sigma, refractory_us,
-             noise_rate_hz, quiet: bool) -> None:
-    """Simulate the scene file SCENE (TOML, see sim/SCENES.md), or --video FILE / --frames DIR, into OUTPUT."""
+             noise_rate_hz, overwrite: bool, quiet: bool) -> None:
+    """Simulate the scene file SCENE (TOML, see sim/SCENES.md), or --video FILE / --frames DIR, into OUTPUT.
+
+    The output is written whole (a temporary file or folder, then renamed); an
+    existing OUTPUT is replaced only with --overwrite.
+    """
+    from evedge._output import OutputExistsError, check_output
     from evedge.io import write_ecd, write_recording
 
     inputs = [x for x in (scene, video, frames_dir) if x is not None]
@@ -77,6 +83,13 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
     frame_opts = dict(timestamps=timestamps, rate_hz=rate_hz, contrast=contrast, contrast_sigma=contrast_sigma,
                       refractory_us=refractory_us, noise_rate_hz=noise_rate_hz)
     _check_output(output, fmt)
+
+    def replacing() -> bool:
+        """After the usage checks, before any work: refuse or announce replacing OUTPUT."""
+        try:
+            return check_output(output, overwrite=overwrite)
+        except OutputExistsError as err:
+            raise click.ClickException(str(err)) from None
     if scene is not None:
         used = [("--rate" if k == "rate_hz" else "--" + k.replace("_", "-"))
                 for k, v in frame_opts.items() if v is not None]
@@ -86,6 +99,7 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
                                    "(a scene sets its pixel model in its [events] table)")
         from .scene import SceneError, load_scene, with_sensor
         from .simulate import simulate as run
+        replaces = replacing()
         try:
             parsed = load_scene(scene) if sensor is None else with_sensor(load_scene(scene), sensor)
             rec = run(parsed, seed=seed, duration_s=duration_s, frame_rate_hz=frame_rate_hz, progress=not quiet)
@@ -96,6 +110,7 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
         for name, value in (("--duration", duration_s), ("--frame-rate", frame_rate_hz)):
             if value is not None:
                 raise click.UsageError(f"{name} applies to scenes only")
+        replaces = replacing()
         from dataclasses import replace
 
         from .converter import ConverterParams
@@ -115,6 +130,8 @@ def simulate(scene: Path | None, output: Path, seed, duration_s, frame_rate_hz, 
             path = write_recording(output, rec) if fmt == "h5" else write_ecd(output, rec)
         except (FramesError, ValueError, TypeError, OSError, MemoryError) as err:
             raise click.ClickException(str(err) or type(err).__name__) from None
+    if replaces:
+        click.echo(f"replaced the earlier output {output}", err=True)
     md = rec.metadata
     click.echo(f"{path}: {rec.events.shape[0]} events ({md['n_signal']} signal, {md['n_noise']} noise), "
                f"{md['duration_s']} s, {rec.sensor_size.width}x{rec.sensor_size.height}, "

@@ -209,6 +209,9 @@ class ConverterParams:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ValueError(f"ConverterParams.{name} must be > 0, got {getattr(self, name)}")
+        if self.min_step_s < 1e-9:
+            # a smaller step vanishes against t (t + step == t): the simulation would never progress
+            raise ValueError(f"ConverterParams.min_step_s must be >= 1e-9, got {self.min_step_s}")
         for name in ("contrast_sigma", "refractory_us", "noise_rate_hz", "jitter_us", "lowpass_cutoff_hz",
                      "leak_rate_hz", "leak_rate_sigma", "shot_noise_rate_hz"):
             if getattr(self, name) < 0:
@@ -217,6 +220,7 @@ class ConverterParams:
         for name, hi, why in (
             ("lambda_", 1.0, "a step may not cross more than one threshold"),
             ("noise_rate_hz", 1e6, "timestamps are whole microseconds"),
+            ("min_rate_hz", 1e6, "a step need not be shorter than a microsecond"),
             ("shot_noise_rate_hz", 1e6, "timestamps are whole microseconds"),
             ("leak_rate_hz", 1e6, "timestamps are whole microseconds"),
             ("lowpass_cutoff_hz", 1e9, "steps of a fraction of a nanosecond"),

@@ -35,6 +35,14 @@ def dataset(spec: Path, output: Path, workers, scheduler, layouts, retries: int,
     from .dataset_run import generate_dataset
     from .scene import SceneError
 
+    if output.is_symlink():
+        raise click.ClickException(f"{output} is a symbolic link; give the folder it points to")
+    if output.is_dir() and any(output.iterdir()):
+        if not (output / "dataset.json").is_file():
+            raise click.ClickException(f"{output} is not empty and holds no dataset.json: it is not a dataset "
+                                       f"folder and is not written into; choose another output folder")
+        # the same spec's dataset is completed and verified, never replaced (another spec's is refused)
+        click.echo(f"completing the existing dataset in {output} (verified sequences are kept)", err=True)
     try:
         parsed = load_dataset(dataset_path(spec))
         run = generate_dataset(parsed, output, layouts=layouts or ("evedge",), workers=workers,

@@ -31,6 +31,13 @@ MAX_DURATION_S = 9e12
 SHAPE_KINDS = ("triangle", "square", "hexagon", "star", "circle", "polygon")
 
 
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(v)
+    except OverflowError:  # an integer beyond any float
+        return False
+
+
 class SceneError(ValueError):
     """A scene file or dict is invalid; the message names file, key and problem."""
 
@@ -78,8 +85,12 @@ class _Table:
         ok = (isinstance(v, int) if integer else isinstance(v, (int, float))) and not isinstance(v, bool)
         if not ok:
             self.fail(name, f"expected {'an integer' if integer else 'a number'}, got {v!r}")
-        if not math.isfinite(v):
-            self.fail(name, f"must be finite, got {v!r}")
+        try:
+            finite = math.isfinite(v)
+        except OverflowError:  # an integer beyond any float
+            finite = False
+        if not finite:
+            self.fail(name, f"must be finite, got {v if isinstance(v, float) else f'an integer of {len(str(abs(v)))} digits'}")
         if lo is not None and (v <= lo if lo_open else v < lo):
             self.fail(name, f"must be {'>' if lo_open else '>='} {lo}, got {v!r}")
         if hi is not None and v > hi:
@@ -107,7 +118,7 @@ class _Table:
         if not present:
             return tuple(v)
         if (not isinstance(v, list) or len(v) != length
-                or not all(isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) for a in v)):
+                or not all(isinstance(a, (int, float)) and not isinstance(a, bool) and _finite(a) for a in v)):
             self.fail(name, f"expected an array of {length} finite numbers, got {v!r}")
         return tuple(float(a) for a in v)
 
@@ -232,9 +243,9 @@ def _params(t: _Table) -> ConverterParams:
         jitter_us=t.number("jitter_us", d.jitter_us, lo=0, hi=1e12),
         log_eps=t.number("log_eps", d.log_eps, lo=0, lo_open=True),
         lambda_=t.number("lambda", d.lambda_, lo=0, lo_open=True, hi=1.0),
-        min_rate_hz=t.number("min_rate_hz", d.min_rate_hz, lo=0, lo_open=True),
+        min_rate_hz=t.number("min_rate_hz", d.min_rate_hz, lo=0, lo_open=True, hi=1e6),
         max_step_px=t.number("max_step_px", d.max_step_px, lo=0, lo_open=True),
-        min_step_s=t.number("min_step_s", d.min_step_s, lo=0, lo_open=True),
+        min_step_s=t.number("min_step_s", d.min_step_s, lo=1e-9),  # below, t + step == t: no progress
         sampling=t.string("sampling", d.sampling, choices=("auto", "verified", "predicted", "geometric")),
         crossing_times=t.string("crossing_times", d.crossing_times, choices=("auto", "exact", "linear")),
         lowpass_cutoff_hz=t.number("lowpass_cutoff_hz", d.lowpass_cutoff_hz, lo=0, hi=1e9),
@@ -367,7 +378,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     kind = head.string("kind", choices=SCENE_KINDS)
     duration = head.number("duration_s", lo=0, lo_open=True, hi=MAX_DURATION_S)
     seed = head.number("seed", 0, lo=0, integer=True)
-    frame_rate = head.number("frame_rate_hz", 100.0, lo=0)
+    frame_rate = head.number("frame_rate_hz", 100.0, lo=0, hi=1e6)  # frame times are whole microseconds
     background = head.number("background", 0.8 if kind == "shapes" else 0.5, lo=0, hi=1)
     description = head.string("description", "")
     head.finish()

@@ -68,6 +68,31 @@ def _as_scene(scene) -> Scene:
     raise TypeError(f"scene must be a Scene or a path to a scene file, got {type(scene).__name__}")
 
 
+#: Per-pixel state of the converter and renderer (references, thresholds, log images, coverage), bytes.
+_STATE_BYTES_PER_PIXEL = 96
+
+
+def _check_memory(scene, params, frame_rate_hz: float) -> None:
+    """Refuse a run whose frames, noise events and per-pixel state cannot fit, before any work."""
+    from evedge._resources import memory_shortfall
+    from evedge.events import EVENT_DTYPE
+
+    from .truth import TRUTH_DTYPE
+
+    pixels = scene.sensor.width * scene.sensor.height
+    n_frames = math.floor(scene.duration_s * frame_rate_hz + 1e-9) + 1 if frame_rate_hz > 0 else 0
+    noise_events = params.noise_rate_hz * pixels * scene.duration_s
+    # events and truth are held in chunks, then concatenated once: twice their size at the end
+    needed = (n_frames * pixels * 5 + 2 * noise_events * (EVENT_DTYPE.itemsize + TRUTH_DTYPE.itemsize)
+              + pixels * _STATE_BYTES_PER_PIXEL)
+    what = (f"simulate: {scene.sensor.width}x{scene.sensor.height} for {scene.duration_s:g} s "
+            f"({n_frames} frames at frame_rate_hz={frame_rate_hz:g}, about {noise_events:.3g} noise events at "
+            f"noise_rate_hz={params.noise_rate_hz:g})")
+    short = memory_shortfall(needed, what)
+    if short:
+        raise MemoryError(f"{short}; lower duration_s, frame_rate_hz, noise_rate_hz or the sensor size")
+
+
 def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
              frame_rate_hz: float | None = None, progress: bool = True, chunk_s: float = 0.05,
              lambda_: float | None = None) -> Recording:
@@ -137,6 +162,7 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
         raise ValueError(f"chunk_s must be > 0, got {chunk_s!r}")
     chunk_s = float(chunk_s)  # a numpy float32 would turn the chunk targets into float32
     params = scene.params if lambda_ is None else replace(scene.params, lambda_=lambda_)
+    _check_memory(scene, params, frame_rate_hz)
 
     from tqdm import tqdm
 

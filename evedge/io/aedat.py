@@ -206,7 +206,11 @@ def read_aedat3(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
         if int(head["type"]) == 1:
             if size != 8:
                 raise EventFileError(f"{path}: packet {packet} at byte offset {pos}: polarity events of {size} bytes, expected 8")
-            n = min(int(head["number"]), capacity)
+            n = int(head["number"])
+            if n < 0:
+                raise EventFileError(f"{path}: packet {packet} at byte offset {pos}: event count {n} is negative "
+                                     f"(corrupt file)")
+            n = min(n, capacity)
             ev = np.frombuffer(data, dtype=[("data", "<u4"), ("t", "<i4")], count=n, offset=pos + 28)
             valid = (ev["data"] & 1) == 1
             invalid += int((~valid).sum())

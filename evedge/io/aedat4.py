@@ -20,46 +20,19 @@ import numpy as np
 
 from ..events import Frames, Recording, SensorSize
 from ._checks import EventFileError, finish_events, locate_index
+from ._isolated import DecoderError, run_isolated
 from ._native import is_decoder_failure
 from .registry import Format, register_format
 
 
-def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:
-    """Read the first event stream (and 8-bit grey frames) of an AEDAT 4 file.
-
-    Parameters
-    ----------
-    path : path-like
-    sensor_size : SensorSize, optional
-        Must match the stream's description when given.
-    sort : bool
-        Sort by time (stable) instead of raising on decreasing timestamps.
-
-    Returns
-    -------
-    Recording
-        Timestamps as stored (absolute microseconds, as DV writes them);
-        ``metadata["sensor_size_from"]`` is ``"file metadata"``.
-
-    Raises
-    ------
-    EventFileError
-        Unreadable or truncated file (the decoder's message is included),
-        no event stream, coordinates outside the sensor, unsorted timestamps.
-
-    Notes
-    -----
-    Frames are kept only when 8-bit grey (``"L"``) and sensor-sized; other
-    frame formats and IMU/trigger packets are counted in ``metadata`` and
-    skipped.
-    """
+def _decode(path: Path, sensor_size: SensorSize | None):
+    """Decode in the child process: the first event stream's packets and its grey frames."""
     import aedat  # the compiled decoder; only AEDAT 4 needs it
 
-    path = Path(path)
     try:
         decoder = aedat.Decoder(str(path))
         streams = decoder.id_to_stream()
-    except BaseException as err:
+    except BaseException as err:  # a pyo3 PanicException is a BaseException
         if not is_decoder_failure(err):
             raise
         raise EventFileError(f"{path}: not a readable AEDAT4 file: {err}") from None
@@ -98,10 +71,55 @@ def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = Non
             else:
                 key = next((k for k in content if k != "stream_id"), "?")
                 skipped[key] = skipped.get(key, 0) + 1
-    except BaseException as err:
-        if not is_decoder_failure(err):
+    except BaseException as err:  # a pyo3 PanicException is a BaseException
+        if not is_decoder_failure(err) or isinstance(err, MemoryError):
             raise
         raise EventFileError(f"{path}: AEDAT4 packet {packet + 1} cannot be decoded (truncated or corrupt file?): {err}") from None
+    return file_size, sid, chunks, frame_t, frame_images, skipped
+
+
+def read_aedat4(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:
+    """Read the first event stream (and 8-bit grey frames) of an AEDAT 4 file.
+
+    Parameters
+    ----------
+    path : path-like
+    sensor_size : SensorSize, optional
+        Must match the stream's description when given.
+    sort : bool
+        Sort by time (stable) instead of raising on decreasing timestamps.
+
+    Returns
+    -------
+    Recording
+        Timestamps as stored (absolute microseconds, as DV writes them);
+        ``metadata["sensor_size_from"]`` is ``"file metadata"``.
+
+    Raises
+    ------
+    EventFileError
+        Unreadable or truncated file (the decoder's message is included),
+        no event stream, coordinates outside the sensor, unsorted timestamps.
+
+    Notes
+    -----
+    Frames are kept only when 8-bit grey (``"L"``) and sensor-sized; other
+    frame formats and IMU/trigger packets are counted in ``metadata`` and
+    skipped. The decoder runs in a forked child process
+    (:func:`evedge.io._isolated.run_isolated`): a panic, an abort or a
+    gigabyte reservation on a corrupt file is an :class:`EventFileError`.
+    """
+    import aedat  # noqa: F401 - the compiled decoder, imported once here rather than in each child
+
+    path = Path(path)
+    if path.is_dir():
+        raise EventFileError(f"{path}: is a folder, not an AEDAT4 file")
+    try:
+        # the Rust decoder panics or aborts the process on some corrupt files: it runs in a child
+        file_size, sid, chunks, frame_t, frame_images, skipped = run_isolated(
+            path, "aedat (AEDAT4)", _decode, path, sensor_size)
+    except DecoderError as err:
+        raise EventFileError(f"{path}: not a readable AEDAT4 file: {err}") from None
     raw = np.concatenate(chunks) if chunks else np.empty(0, dtype=[("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("on", "?")])
     t = raw["t"]
     if t.size and int(t.max()) > np.iinfo(np.int64).max:

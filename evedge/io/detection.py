@@ -2,7 +2,7 @@
 
 Written by ``evedge detect``, read by :func:`read_detection` (and by
 :func:`evedge.io.read_events`, ``evedge info`` and ``evedge grade``). One
-HDF5 file (``format="evedge-detection"``, ``format_version=1``)::
+HDF5 file (``format="evedge-detection"``, ``format_version=2``)::
 
     /events/{x, y, t, p}     the events the method saw (optional: else the source's
                              sha256 and absolute path in the metadata)
@@ -11,7 +11,8 @@ HDF5 file (``format="evedge-detection"``, ``format_version=1``)::
     /edges/{t_us, images}    edge frames (optional)
     attrs: format, format_version, sensor_width, sensor_height,
            metadata (JSON: method, kind, display, params, filter, filter_params,
-           source {path, sha256, n_events, format}, versions, command)
+           source {path, sha256, n_events, format}, versions, command),
+           checksums (sha256 of every dataset and attribute, verified on read)
 
 Written through a temporary file renamed into place; the same inputs give
 the same bytes (no HDF5 timestamps).
@@ -38,15 +39,16 @@ from typing import Any
 
 import numpy as np
 
+from .._resources import memory_shortfall
 from ..events import EVENT_DTYPE, Frames, SensorSize, make_events
-from ._atomic import atomic_path, check_output_file
 from ._checks import EventFileError
+from .hdf5 import _metadata_json, _new_file
 
 __all__ = ["DETECTION_FORMAT", "DETECTION_FORMAT_VERSION", "LIFETIME_COLUMNS", "Detection", "file_sha256",
            "is_detection_file", "read_detection", "write_detection"]
 
 DETECTION_FORMAT = "evedge-detection"
-DETECTION_FORMAT_VERSION = 1
+DETECTION_FORMAT_VERSION = 2  # 2: sha256 checksums of every dataset and attribute (evedge.io.hdf5.seal)
 
 #: Per-event columns of ``/lifetimes`` (LIFETIME_DTYPE's fields, then the filter's decision).
 LIFETIME_COLUMNS = (("lifetime_us", np.float64), ("vx_px_s", np.float64), ("vy_px_s", np.float64),
@@ -113,8 +115,6 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
         For a wrong ``detection`` (not a Detection, events not EVENT_DTYPE,
         per-event columns not aligned, metadata not JSON); nothing is written.
     """
-    import h5py
-
     if not isinstance(detection, Detection):
         raise TypeError(f"write_detection: expected a Detection, got {type(detection).__name__}")
     size = detection.sensor_size
@@ -128,31 +128,21 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
             raise ValueError(f"write_detection: lifetimes lack columns {missing}")
         if ev is not None and lt.shape[0] != ev.shape[0]:
             raise ValueError(f"write_detection: {lt.shape[0]} lifetime rows for {ev.shape[0]} events")
-    try:
-        metadata = json.dumps(detection.metadata, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"write_detection: metadata is not JSON-serialisable: {err}") from err
+    metadata = _metadata_json(detection.metadata, "write_detection: metadata")
     path = Path(path)
-    check_output_file(path, "write_detection")
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs["format"] = DETECTION_FORMAT
-            f.attrs["format_version"] = np.int64(DETECTION_FORMAT_VERSION)
-            f.attrs["sensor_width"] = np.int64(size.width)
-            f.attrs["sensor_height"] = np.int64(size.height)
-            f.attrs["metadata"] = metadata
-            if ev is not None:
-                g = f.create_group("events", track_order=True)
-                for name in ("x", "y", "t", "p"):
-                    _dataset(g, name, np.ascontiguousarray(ev[name]), compress_per_event)
-            if lt is not None:
-                g = f.create_group("lifetimes", track_order=True)
-                for name, dtype in LIFETIME_COLUMNS:
-                    _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype), compress_per_event)
-            if detection.edges is not None:
-                g = f.create_group("edges", track_order=True)
-                _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
-                _dataset(g, "images", np.asarray(detection.edges.images, bool))
+    with _new_file(path, "write_detection", DETECTION_FORMAT, DETECTION_FORMAT_VERSION, size, metadata) as f:
+        if ev is not None:
+            g = f.create_group("events", track_order=True)
+            for name in ("x", "y", "t", "p"):
+                _dataset(g, name, np.ascontiguousarray(ev[name]), compress_per_event)
+        if lt is not None:
+            g = f.create_group("lifetimes", track_order=True)
+            for name, dtype in LIFETIME_COLUMNS:
+                _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype), compress_per_event)
+        if detection.edges is not None:
+            g = f.create_group("edges", track_order=True)
+            _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
+            _dataset(g, "images", np.asarray(detection.edges.images, bool))
     return path
 
 
@@ -160,42 +150,52 @@ def is_detection_file(path: str | os.PathLike) -> bool:
     """True when ``path`` is an HDF5 file with ``format="evedge-detection"``."""
     import h5py
 
+    from .hdf5 import probe
+
     path = Path(path)
     if not path.is_file():
         return False
+    probe(path)  # a corrupt header can make HDF5 loop for minutes: an EventFileError instead
     try:
         with h5py.File(path, "r") as f:
             fmt = f.attrs.get("format")
-    except OSError:
-        return False
-    return (fmt.decode() if isinstance(fmt, bytes) else fmt) == DETECTION_FORMAT
-
-
-def _read(f, path: Path, name: str) -> np.ndarray:
-    try:
-        return np.asarray(f[name][()])
-    except (OSError, KeyError, ValueError) as err:
-        raise EventFileError(f"{path}: dataset {name!r} is unreadable: {err}") from None
+    except Exception:  # noqa: BLE001 - h5py raises OSError, KeyError, RuntimeError on corrupt files
+        return False  # not a (readable) detection file; the HDF5 reader names what is wrong
+    if isinstance(fmt, bytes):
+        fmt = fmt.decode("utf-8", "replace")
+    return fmt == DETECTION_FORMAT
 
 
 def read_detection(path: str | os.PathLike) -> Detection:
-    """Read a detection file written by :func:`write_detection` (``evedge detect``).
+    """Read a detection file written by :func:`write_detection` (``evedge detect``), verifying it.
 
     Raises
     ------
     EventFileError
-        Naming the file and the attribute or dataset that is missing or malformed.
+        Naming the file and the attribute or dataset that is missing or
+        malformed: a link or virtual dataset, a declared size the file does not
+        store or the machine cannot hold, a checksum mismatch (a flipped byte),
+        edge maps that are not boolean, any HDF5 read failure.
     """
     import h5py
 
+    from .hdf5 import _check_tree, _checksums, _declared_bytes, _read, _reading, probe
+
     path = Path(path)
+    if path.is_dir():
+        raise EventFileError(f"{path}: is a folder, not a detection file")
+    if not path.exists():
+        raise EventFileError(f"{path}: no such file")
+    probe(path)
     try:
         f = h5py.File(path, "r")
-    except (OSError, IsADirectoryError) as err:
+    except (OSError, KeyError, RuntimeError, ValueError) as err:
         raise EventFileError(f"{path}: not a readable HDF5 file: {err}") from None
-    with f:
+    place: list = []
+    with f, _reading(path, place):
+        place[:] = ["attribute 'format'"]
         fmt = f.attrs.get("format")
-        fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+        fmt = fmt.decode("utf-8", "replace") if isinstance(fmt, bytes) else fmt
         if fmt != DETECTION_FORMAT:
             raise EventFileError(f"{path}: not an evedge detection file (attribute format={fmt!r}, "
                                  f"expected {DETECTION_FORMAT!r})")
@@ -203,44 +203,74 @@ def read_detection(path: str | os.PathLike) -> Detection:
         if not (isinstance(version, (int, np.integer)) and int(version) == DETECTION_FORMAT_VERSION):
             raise EventFileError(f"{path}: detection format_version={version} is not supported "
                                  f"(this reader knows {DETECTION_FORMAT_VERSION})")
+        sums = _checksums(f, path)
+        place[:] = ["the file structure"]
+        _check_tree(f, path, sums)
         try:
             size = SensorSize(int(f.attrs["sensor_width"]), int(f.attrs["sensor_height"]))
             metadata = json.loads(f.attrs.get("metadata", "{}"))
-        except (KeyError, ValueError, TypeError) as err:
+        except (KeyError, ValueError, TypeError, OverflowError) as err:
             raise EventFileError(f"{path}: bad sensor_width/sensor_height/metadata attribute: {err}") from None
-        events = None
+        if not isinstance(metadata, dict):
+            raise EventFileError(f"{path}: attribute 'metadata' must hold a JSON object")
+
+        def dataset(name):
+            obj = f.get(name)
+            if not isinstance(obj, h5py.Dataset):
+                raise EventFileError(f"{path}: {name!r} is missing or not a dataset")
+            return obj
+
+        wanted = []
         if "events" in f:
-            cols = [_read(f, path, f"events/{c}") for c in ("x", "y", "t", "p")]
-            if len({c.shape for c in cols}) != 1:
-                raise EventFileError(f"{path}: events/x, y, t, p have different lengths {[c.shape for c in cols]}")
+            wanted += [f"events/{c}" for c in ("x", "y", "t", "p")]
+        if "lifetimes" in f:
+            wanted += [f"lifetimes/{name}" for name, _ in LIFETIME_COLUMNS]
+        if "edges" in f:
+            wanted += ["edges/t_us", "edges/images"]
+        sets = {name: dataset(name) for name in wanted}
+        lengths = {name: ds.shape for name, ds in sets.items() if name.startswith(("events/", "lifetimes/"))}
+        for name, shape in lengths.items():
+            first = next(iter(lengths.values()))
+            if len(shape) != 1:
+                raise EventFileError(f"{path}: {name} has shape {shape}, expected one row per event")
+            if name.startswith("lifetimes/") and shape != lengths.get(f"lifetimes/{LIFETIME_COLUMNS[0][0]}"):
+                raise EventFileError(f"{path}: {name} has shape {shape}, expected "
+                                     f"{lengths[f'lifetimes/{LIFETIME_COLUMNS[0][0]}']}")
+            if shape != first and name.startswith("events/"):
+                raise EventFileError(f"{path}: events/x, y, t, p have different lengths")
+        if "edges/images" in sets and sets["edges/images"].dtype != np.bool_:
+            raise EventFileError(f"{path}: edges/images has dtype {sets['edges/images'].dtype}, expected bool")
+        if "edges/t_us" in sets and sets["edges/t_us"].dtype.kind not in "iu":
+            raise EventFileError(f"{path}: edges/t_us has dtype {sets['edges/t_us'].dtype}, expected integers")
+        declared = sum(_declared_bytes(ds, path, name) for name, ds in sets.items())
+        short = memory_shortfall(2 * declared, "reading this detection file")
+        if short:
+            raise EventFileError(f"{path}: {short}")
+        data = {name: _read(ds, path, name, sums, place) for name, ds in sets.items()}
+        events = None
+        if "events/x" in data:
             try:
-                events = make_events(*cols)
+                events = make_events(*(data[f"events/{c}"] for c in ("x", "y", "t", "p")))
             except (ValueError, TypeError) as err:
                 raise EventFileError(f"{path}: events: {err}") from None
         lifetimes = None
-        if "lifetimes" in f:
-            n = None
-            lifetimes_cols = {}
-            for name, dtype in LIFETIME_COLUMNS:
-                col = _read(f, path, f"lifetimes/{name}")
-                if col.ndim != 1 or (n is not None and col.shape[0] != n):
-                    raise EventFileError(f"{path}: lifetimes/{name} has shape {col.shape}, expected ({n},)")
-                n = col.shape[0]
-                lifetimes_cols[name] = col.astype(dtype, copy=False)
+        if "lifetimes/kept" in data:
+            n = data["lifetimes/kept"].shape[0]
             if events is not None and n != events.shape[0]:
                 raise EventFileError(f"{path}: {n} lifetime rows for {events.shape[0]} events")
             lifetimes = np.empty(n, dtype=list(LIFETIME_COLUMNS))
-            for name, col in lifetimes_cols.items():
+            for name, dtype in LIFETIME_COLUMNS:
+                col = data[f"lifetimes/{name}"]
+                if (dtype == np.bool_) != (col.dtype == np.bool_):
+                    raise EventFileError(f"{path}: lifetimes/{name} has dtype {col.dtype}, expected {np.dtype(dtype)}")
                 lifetimes[name] = col
         edges = None
-        if "edges" in f:
-            t = _read(f, path, "edges/t_us")
-            images = _read(f, path, "edges/images")
+        if "edges/t_us" in data:
             try:
-                edges = Frames(t, images.astype(bool, copy=False))
+                edges = Frames(data["edges/t_us"], data["edges/images"])
             except ValueError as err:
                 raise EventFileError(f"{path}: edges: {err}") from None
             if len(edges) and edges.images.shape[1:] != size.shape:
-                raise EventFileError(f"{path}: edges/images are {images.shape[2]}x{images.shape[1]}, the sensor "
-                                     f"is {size.width}x{size.height}")
+                raise EventFileError(f"{path}: edges/images are {edges.images.shape[2]}x{edges.images.shape[1]}, "
+                                     f"the sensor is {size.width}x{size.height}")
     return Detection(size, events, lifetimes, edges, metadata)

@@ -22,10 +22,12 @@ import os
 import re
 import shutil
 import warnings
+import zlib
 from pathlib import Path
 
 import numpy as np
 
+from .._resources import memory_shortfall
 from ..calibration import CameraCalibration
 from ..events import Frames, Recording, SensorSize, seconds_to_us
 from ._atomic import atomic_path, current_umask, make_temp_dir
@@ -40,27 +42,44 @@ _CHUNK_ROWS = 1_000_000
 # ---------------------------------------------------------------- reading
 
 
+def _split_lines(data: bytes) -> list[bytes]:
+    """Lines as :func:`numpy.loadtxt` sees them: universal newlines (LF, CRLF and CR alone)."""
+    return data.splitlines()
+
+
 def _data_lines(data: bytes):
     """Yield ``(line_number, tokens)`` of every data line (1-based numbers)."""
-    for number, raw in enumerate(data.split(b"\n"), start=1):
+    for number, raw in enumerate(_split_lines(data), start=1):
         tokens = raw.split(b"#", 1)[0].split()
         if tokens:
             yield number, tokens
 
 
-def _line_of_row(data: bytes, row: int) -> int:
+def _line_of_row(data: bytes, row: int) -> str:
+    """``"line N"`` of data row ``row`` (0-based), or ``"data row N"`` if the scan disagrees."""
     for k, (number, _) in enumerate(_data_lines(data)):
         if k == row:
-            return number
-    raise IndexError(row)  # unreachable: rows come from parsing the same data
+            return f"line {number}"
+    return f"data row {row + 1}"
 
 
 def _first_bad_line(path: Path, data: bytes, ncols: int, names: tuple[str, ...]) -> str:
     """Name the first line that does not hold ``ncols`` numbers."""
-    truncated = not data.endswith(b"\n")
-    last = data.rstrip(b"\n").count(b"\n") + 1
-    for number, tokens in _data_lines(data):
+    truncated = not data.endswith((b"\n", b"\r"))
+    lines = _split_lines(data)
+    last = len(lines)
+    for number, raw in enumerate(lines, start=1):
         where = f"{path}: line {number}"
+        try:
+            raw.decode("utf-8")
+        except UnicodeDecodeError as err:
+            return f"{where}: not UTF-8 text (byte {raw[err.start]:#04x} at column {err.start + 1})"
+        nul = raw.find(b"\0")
+        if nul >= 0:
+            return f"{where}: holds a NUL byte (column {nul + 1}): not a text file?"
+        tokens = raw.split(b"#", 1)[0].split()
+        if not tokens:
+            continue
         if number == last and truncated:
             where += " (the last line, no newline at the end: is the file truncated?)"
         if len(tokens) != ncols:
@@ -92,19 +111,119 @@ def _load_table(path: Path, ncols: int, names: tuple[str, ...]) -> np.ndarray:
     return table
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _adam7_bytes(width: int, height: int) -> int:
+    """Filtered bytes of an interlaced 8-bit grey image: seven passes, one filter byte per row."""
+    total = 0
+    for x0, y0, dx, dy in ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2)):
+        cols, rows = -(-(width - x0) // dx), -(-(height - y0) // dy)
+        if cols > 0 and rows > 0:
+            total += rows * (cols + 1)
+    return total
+
+
+def verify_png(data: bytes, where: str, expect_shape: tuple[int, int] | None = None,
+               expect_what: str = "expected") -> tuple[int, int]:
+    """Check a PNG completely before it is decoded: chunk CRCs, header, the whole pixel stream.
+
+    Parameters
+    ----------
+    data : bytes
+        The file.
+    where : str
+        Prefix of messages (``"images.txt: line 3: images/frame_00000002.png"``).
+    expect_shape : (height, width), optional
+        Refuse another size before any pixel is decompressed.
+    expect_what : str
+        What ``expect_shape`` is, for the message (``"the first frame"``).
+
+    Returns
+    -------
+    (width, height)
+
+    Raises
+    ------
+    EventFileError
+        Not a PNG, a chunk cut short or failing its CRC, not 8-bit grey,
+        a size outside 1..32767, pixel data that does not decompress to
+        exactly the rows the header declares (rows missing or extra), no
+        ``IEND`` at the end.
+    """
+    if not data.startswith(_PNG_SIGNATURE):
+        raise EventFileError(f"{where}: not a PNG file (no PNG signature)")
+    pos, header, idat, ended = len(_PNG_SIGNATURE), None, [], False
+    while pos < len(data):
+        if pos + 12 > len(data):
+            raise EventFileError(f"{where}: chunk at byte {pos} is cut short (truncated file?)")
+        length = int.from_bytes(data[pos:pos + 4], "big")
+        kind = data[pos + 4:pos + 8]
+        body = data[pos + 8:pos + 8 + length]
+        if length > 2**31 - 1 or pos + 12 + length > len(data):
+            raise EventFileError(f"{where}: chunk {kind!r} at byte {pos} claims {length} bytes past the end of the file")
+        crc = int.from_bytes(data[pos + 8 + length:pos + 12 + length], "big")
+        if zlib.crc32(kind + body) != crc:
+            raise EventFileError(f"{where}: chunk {kind!r} at byte {pos} fails its CRC: the file is corrupt")
+        if header is None and kind != b"IHDR":
+            raise EventFileError(f"{where}: the first chunk is {kind!r}, expected IHDR")
+        if kind == b"IHDR":
+            if length != 13:
+                raise EventFileError(f"{where}: IHDR of {length} bytes, expected 13")
+            header = body
+        elif kind == b"IDAT":
+            idat.append(body)
+        elif kind == b"IEND":
+            ended = True
+            pos += 12 + length
+            break
+        pos += 12 + length
+    if not ended:
+        raise EventFileError(f"{where}: no IEND chunk: the file is truncated")
+    width, height = int.from_bytes(header[0:4], "big"), int.from_bytes(header[4:8], "big")
+    depth, colour, method, filtering, interlace = header[8:13]
+    if (depth, colour) != (8, 0):
+        raise EventFileError(f"{where}: a {depth}-bit PNG of colour type {colour}, expected 8-bit grey (type 0)")
+    if not (1 <= width <= 32767 and 1 <= height <= 32767) or method or filtering or interlace > 1:
+        raise EventFileError(f"{where}: bad PNG header ({width}x{height}, compression {method}, filter "
+                             f"{filtering}, interlace {interlace})")
+    if expect_shape is not None and (height, width) != tuple(expect_shape):
+        raise EventFileError(f"{where} is {width}x{height}, {expect_what} is {expect_shape[1]}x{expect_shape[0]}")
+    expected = _adam7_bytes(width, height) if interlace else height * (width + 1)
+    inflater = zlib.decompressobj()
+    try:
+        raw = inflater.decompress(b"".join(idat), expected + 1)  # never more than the header allows
+    except zlib.error as err:
+        raise EventFileError(f"{where}: pixel data is corrupt: {err}") from None
+    if len(raw) != expected or not inflater.eof:
+        rows = len(raw) // (width + 1)
+        what = "more than" if len(raw) > expected else f"{len(raw)} bytes ({rows} rows) of"
+        raise EventFileError(f"{where}: pixel data holds {what} the {expected} bytes ({height} rows of "
+                             f"{width}) its header declares: the file is corrupt")
+    return width, height
+
+
 def _read_frames(images_txt: Path) -> Frames:
-    """Read ``images.txt`` and its PNGs into uint8 frames."""
+    """Read ``images.txt`` and its PNGs into uint8 frames, each verified before it is decoded."""
+    import io
+
     from PIL import Image  # Pillow is slow to import; only frames need it
 
     folder = images_txt.parent
     t_us, images = [], []
-    for number, raw in enumerate(images_txt.read_bytes().split(b"\n"), start=1):
+    raw_text = images_txt.read_bytes()
+    entries = []
+    for number, raw in enumerate(_split_lines(raw_text), start=1):
+        where = f"{images_txt}: line {number}"
+        if b"\0" in raw:
+            raise EventFileError(f"{where}: holds a NUL byte: not a text file?")
         tokens = raw.split(b"#", 1)[0].split()
         if not tokens:
             continue
-        where = f"{images_txt}: line {number}"
         if len(tokens) != 2:
             raise EventFileError(f"{where}: expected 't path', found {len(tokens)} columns")
+        entries.append((where, tokens))
+    for where, tokens in entries:
         try:
             t_s = float(tokens[0])
         except ValueError:
@@ -112,19 +231,38 @@ def _read_frames(images_txt: Path) -> Frames:
         if not np.isfinite(t_s) or abs(t_s * 1e6) >= 2.0**63:
             raise EventFileError(f"{where}: time {t_s!r} is not finite or out of the int64 microsecond range")
         try:
-            png = folder / tokens[1].decode("utf-8")
+            name = tokens[1].decode("utf-8")
         except UnicodeDecodeError:
             raise EventFileError(f"{where}: frame path {tokens[1]!r} is not UTF-8 text") from None
+        relative = Path(name)
+        if relative.is_absolute() or ".." in relative.parts:
+            raise EventFileError(f"{where}: frame path {name!r} leaves the folder {folder}")
+        png = folder / relative
+        if not png.is_file():
+            what = "does not exist" if not png.exists() else "is not a regular file"
+            raise EventFileError(f"{where}: frame {png} {what}")
         try:
-            with Image.open(png) as im:
+            data = png.read_bytes()
+        except OSError as err:
+            raise EventFileError(f"{where}: cannot read frame {png}: {err}") from err
+        first = images[0].shape if images else None
+        width, height = verify_png(data, f"{where}: frame {png}", first, "the first frame")
+        if not images:
+            short = memory_shortfall(len(entries) * width * height, f"{len(entries)} frames of {width}x{height}")
+            if short:
+                raise EventFileError(f"{images_txt}: {short}")
+        try:
+            with Image.open(io.BytesIO(data), formats=["PNG"]) as im:
                 if im.mode != "L":
                     raise EventFileError(f"{where}: {png} is a {im.mode!r} image, expected 8-bit grey ('L')")
                 img = np.asarray(im, dtype=np.uint8)
-        except (OSError, FileNotFoundError) as err:
-            raise EventFileError(f"{where}: cannot read frame {png}: {err}") from err
-        if images and img.shape != images[0].shape:
-            raise EventFileError(f"{where}: frame {png} is {img.shape[1]}x{img.shape[0]}, "
-                                 f"the first frame is {images[0].shape[1]}x{images[0].shape[0]}")
+        except EventFileError:
+            raise
+        except Exception as err:  # noqa: BLE001 - Pillow raises OSError, SyntaxError, ValueError, bomb errors...
+            raise EventFileError(f"{where}: cannot decode frame {png}: {type(err).__name__}: {err}") from None
+        if img.shape != (height, width):
+            raise EventFileError(f"{where}: frame {png} decoded to {img.shape[1]}x{img.shape[0]}, its header says "
+                                 f"{width}x{height}")
         t_us.append(int(seconds_to_us(t_s)))
         images.append(img)
     if not images:
@@ -184,7 +322,7 @@ def read_ecd(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, 
 
     def locate(row: int) -> str:
         # error path only: re-read the file to turn a data row into a line number
-        return f"line {_line_of_row(path.read_bytes(), row)}"
+        return _line_of_row(path.read_bytes(), row)
 
     t_s, x, y, p = table.T
     bad = np.flatnonzero(~np.isfinite(table).all(axis=1))

@@ -19,9 +19,20 @@ import numpy as np
 
 from ..events import SENSOR_PRESETS, Recording, SensorSize
 from ._checks import EventFileError, finish_events
+from ._isolated import DecoderError, run_isolated
 from .registry import Format, register_format
 
 _COLUMNS = ("x", "y", "p", "t")
+
+
+def _load_variables(path: Path, variable: str) -> dict:
+    """``{name: value}`` with ``variable``'s value, or ``{name: None}`` for the other variables."""
+    import scipy.io  # heavy; only .mat reading needs it
+
+    names = [name for name, _, _ in scipy.io.whosmat(path)]
+    if variable not in names:
+        return dict.fromkeys(names)
+    return {variable: scipy.io.loadmat(path, variable_names=[variable])[variable]}
 
 
 def read_mat(
@@ -56,17 +67,21 @@ def read_mat(
         unsorted timestamps (unless ``sort``). Messages name the file, the
         variable and the row (0-based).
     """
-    import scipy.io  # heavy; only .mat reading needs it
+    import scipy.io  # noqa: F401 - heavy; imported here once, not in every child process
 
     path = Path(path)
+    if path.is_dir():
+        raise EventFileError(f"{path}: is a folder, not a MATLAB .mat file")
     try:
-        content = scipy.io.loadmat(path)
-    except NotImplementedError as err:  # v7.3 files are HDF5 inside
-        raise EventFileError(f"{path}: MATLAB v7.3 files are not supported; save with -v7: {err}") from err
-    except Exception as err:  # noqa: BLE001
-        # scipy's parser fails on garbage in many ways (MatReadError, IndexError, struct.error, ...);
+        # scipy's parser segfaults on some corrupt files: it runs in a child process
+        content = run_isolated(path, "scipy .mat", _load_variables, path, variable)
+    except DecoderError as err:
+        message = str(err)
+        if message.startswith("NotImplementedError"):  # v7.3 files are HDF5 inside
+            raise EventFileError(f"{path}: MATLAB v7.3 files are not supported; save with -v7: {message}") from None
+        # scipy fails on garbage in many ways (MatReadError, IndexError, struct.error, ...);
         # all mean the same to the user: this is not a .mat file it can read
-        raise EventFileError(f"{path}: not a readable MATLAB .mat file: {err}") from err
+        raise EventFileError(f"{path}: not a readable MATLAB .mat file: {message}") from None
     if variable not in content:
         found = sorted(k for k in content if not k.startswith("__")) or ["none"]
         raise EventFileError(f"{path}: no variable {variable!r} (variables: {', '.join(found)})")

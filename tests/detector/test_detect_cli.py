@@ -54,7 +54,7 @@ def test_detect_time_method_and_bad_file(tmp_path, edge_events):
         assert "lifetimes" not in f and f["edges/images"].shape[1:] == (10, 10)
     bad = tmp_path / "bad.txt"
     bad.write_text("not events\n")
-    res = CliRunner().invoke(detect, [str(bad), "-o", str(out), "--sensor", "10x10"])
+    res = CliRunner().invoke(detect, [str(bad), "-o", str(out), "--sensor", "10x10", "--overwrite"])
     assert res.exit_code != 0 and "bad.txt" in res.output
     res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--times", "a,b"])
     assert res.exit_code != 0 and "--times" in res.output
@@ -97,16 +97,19 @@ def test_detect_bad_options_are_clear_errors(tmp_path, edge_events):
         assert isinstance(res.exception, SystemExit), (extra, res.exception)  # not an escaped exception
 
 
-def test_detect_unwritable_output_is_a_clear_error(tmp_path, edge_events):
+def test_detect_refuses_to_replace_what_it_did_not_write(tmp_path, edge_events):
     ev, _ = edge_events(10, 10, 1000, 0.0)
     src = tmp_path / "events.txt"
     _write_ecd(src, ev)
     out = tmp_path / "o"
-    (out / "detection.h5").mkdir(parents=True)  # a folder where the file should go
-    res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "10x10", "--quiet"])
-    assert res.exit_code == 1 and isinstance(res.exception, SystemExit), res.output
-    assert "Error: cannot write the output" in res.output
-    assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+    out.mkdir()
+    (out / "thesis.tex").write_text("mine")
+    for extra in ([], ["--overwrite"]):
+        res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "10x10", "--quiet", *extra])
+        assert res.exit_code == 1 and isinstance(res.exception, SystemExit), res.output
+        assert ("already exists; pass --overwrite" if not extra else "thesis.tex is not written by this command") \
+            in res.output
+    assert [p.name for p in out.iterdir()] == ["thesis.tex"] and len(list(tmp_path.iterdir())) == 2  # no temp left
 
 
 def test_detect_rerun_replaces_frames_and_sort_option(tmp_path, edge_events):
@@ -118,19 +121,26 @@ def test_detect_rerun_replaces_frames_and_sort_option(tmp_path, edge_events):
     assert CliRunner().invoke(detect, args + ["--times", "1000,2000,3000"]).exit_code == 0
     keep = out / "edges" / "notes.txt"
     keep.write_text("mine")
-    assert CliRunner().invoke(detect, args + ["--times", "5000"]).exit_code == 0
+    res = CliRunner().invoke(detect, args + ["--times", "5000", "--overwrite"])
+    assert res.exit_code == 1 and "notes.txt was not written by evedge detect" in res.output
+    assert keep.read_text() == "mine" and len(list((out / "edges").glob("*.png"))) == 3  # nothing touched
+    keep.unlink()
+    res = CliRunner().invoke(detect, args + ["--times", "5000"])
+    assert res.exit_code == 1 and "already exists; pass --overwrite to replace it" in res.output
+    res = CliRunner().invoke(detect, args + ["--times", "5000", "--overwrite"])
+    assert res.exit_code == 0 and "replaced the earlier output" in res.stderr
     pngs = sorted(p.name for p in (out / "edges").glob("*.png"))
     assert pngs == ["edges_000000_5000us.png"]  # the three frames of the first run are gone
-    assert keep.read_text() == "mine"  # files this command did not write are left alone
     mask = os.umask(0o022)
     os.umask(mask)
     assert (out / "detection.h5").stat().st_mode & 0o777 == 0o666 & ~mask  # as open() would, not mkstemp's 0600
     # an unsorted file: an error that suggests --sort, and --sort reads it
     unsorted = tmp_path / "unsorted.txt"
     unsorted.write_text("0.002 1 1 1\n0.001 2 2 0\n")
-    res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet"])
+    res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet", "--overwrite"])
     assert res.exit_code == 1 and "--sort" in res.output
-    res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet", "--sort"])
+    res = CliRunner().invoke(detect, [str(unsorted), "-o", str(out), "--sensor", "10x10", "--quiet", "--sort",
+                                      "--overwrite"])
     assert res.exit_code == 0, res.output
 
 
@@ -154,9 +164,69 @@ def test_detect_warns_when_no_frame_fits(tmp_path):
     assert res.exit_code == 0, res.output
     assert "0 edge frames" in res.stdout
     assert "no edge frame" in res.stderr and "--times" in res.stderr
-    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10",
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o2"), "--sensor", "10x10",
                                       "--quiet", "--times", "1500"])
     assert res.exit_code == 0 and "1 edge frames" in res.stdout and res.stderr == ""
+
+
+def test_detect_time_range_edges_and_seed_bounds(tmp_path):
+    """Times near the int64 limit, instants of opposite sign beyond int64 differences, a seed beyond int64."""
+    from evedge.events import Recording, SensorSize, make_events
+    from evedge.io import write_recording
+
+    n = 300
+    t = np.iinfo(np.int64).max - np.arange(n)[::-1] * 1000  # the last event at 2**63 - 1 us
+    near_max = write_recording(tmp_path / "late.h5", Recording(
+        make_events(np.arange(n) % 10, np.full(n, 1), t, np.ones(n, bool)), SensorSize(10, 10)))
+    for method in ("time", "intra"):
+        out = tmp_path / f"late_{method}"
+        res = CliRunner().invoke(detect, [str(near_max), "-o", str(out), "--quiet", "--method", method, "--fps", "20"])
+        assert res.exit_code == 0, res.output
+        with h5py.File(out / "detection.h5") as f:
+            t = f["edges/t_us"][()]
+        assert t.size and (t > 9 * 10**18).all()  # never a frame at -2**63 us
+    src = tmp_path / "events.txt"
+    src.write_text("0.001 1 1 1\n0.002 2 2 0\n")
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "10x10", "--quiet",
+                                      "--method", "time", "--times", "-5000000000000000000,5000000000000000000"])
+    assert res.exit_code == 0, res.output  # non-decreasing: accepted (np.diff would have wrapped)
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o2"), "--sensor", "10x10", "--quiet",
+                                      "--seed", str(2**63)])
+    assert res.exit_code == 2 and "--seed" in res.output and isinstance(res.exception, SystemExit)
+
+
+def test_detect_refuses_a_sensor_that_cannot_fit_before_work(tmp_path):
+    src = tmp_path / "events.txt"
+    src.write_text("0.001 1 1 1\n0.002 2 2 0\n")
+    res = CliRunner().invoke(detect, [str(src), "-o", str(tmp_path / "o"), "--sensor", "30000x30000", "--quiet",
+                                      "--times", "1500"])
+    assert res.exit_code == 1 and isinstance(res.exception, SystemExit), res.output
+    assert "30000x30000 sensor" in res.output and "GiB; this machine has" in res.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_detect_never_writes_or_deletes_through_a_link(tmp_path):
+    src = tmp_path / "events.txt"
+    src.write_text("0.001 1 1 1\n0.002 2 2 0\n")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    victim = elsewhere / "edges_000000_1000us.png"  # a frame-named file outside the output
+    victim.write_bytes(b"precious")
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "edges").symlink_to(elsewhere)
+    for extra in ([], ["--overwrite"]):
+        res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "10x10", "--quiet", "--times", "1500",
+                                          *extra])
+        assert res.exit_code == 1, res.output
+    assert "symbolic link" in res.output
+    assert victim.read_bytes() == b"precious" and sorted(p.name for p in elsewhere.iterdir()) == [victim.name]
+    link = tmp_path / "link_out"
+    link.symlink_to(elsewhere)
+    res = CliRunner().invoke(detect, [str(src), "-o", str(link), "--sensor", "10x10", "--quiet", "--times", "1500",
+                                      "--overwrite"])
+    assert res.exit_code == 1 and "is a symbolic link" in res.output
+    assert sorted(p.name for p in elsewhere.iterdir()) == [victim.name]
 
 
 def test_detect_seed_is_honoured_by_random_methods_and_refused_by_the_others(tmp_path, edge_events):

@@ -72,3 +72,16 @@ def test_aedat3_damage(tmp_path, aedat3_file):
         bad.write_bytes(data[:cut])
         with pytest.raises(EventFileError, match=message):
             read_events(bad)
+
+
+def test_aedat3_negative_event_count_is_named(tmp_path, aedat3_file):
+    """Found by the fuzz campaign: eventNumber -5 reached np.frombuffer(count=-5), a ValueError traceback."""
+    import struct
+
+    path = aedat3_file(tmp_path / "c.aedat", [(1, 0, [(3, 4, 1, 1, 100), (5, 5, 0, 1, 200)])])
+    data = bytearray(path.read_bytes())
+    header = data.index(b"#!END-HEADER\r\n") + 14
+    data[header + 20:header + 24] = struct.pack("<i", -5)  # the packet's eventNumber
+    path.write_bytes(bytes(data))
+    with pytest.raises(EventFileError, match=r"c\.aedat: packet 0 at byte offset \d+: event count -5 is negative"):
+        read_events(path)

@@ -60,3 +60,23 @@ def test_impossible_sensor_size_in_the_description_names_the_file(tmp_path, writ
     path = write_aedat4(tmp_path / "a.aedat4", 0, 8, [([0], [1], [5], [1])])
     with pytest.raises(EventFileError, match=r"a\.aedat4: event stream 0 has a bad sensor size: SensorSize\.width"):
         read_events(path)
+
+
+def test_decoder_panics_and_aborts_are_errors_naming_the_file(tmp_path, write_aedat4):
+    import struct
+
+    path = write_aedat4(tmp_path / "a.aedat4", 16, 16, [([1, 2], [3, 4], [10, 20], [1, 0])])
+    good = path.read_bytes()
+    header_end = 14 + 4 + struct.unpack_from("<I", good, 14)[0]
+    cases = {
+        # a negative packet size: the decoder reserves 4 GiB and aborts the process (SIGABRT) when it cannot
+        "size": good[:header_end + 4] + struct.pack("<i", -5) + good[header_end + 8:],
+        # an IOHeader size of 0: a Rust panic (pyo3 PanicException, a BaseException)
+        "header": good[:14] + struct.pack("<I", 0) + good[18:],
+    }
+    for name, data in cases.items():
+        bad = tmp_path / f"{name}.aedat4"
+        bad.write_bytes(data)
+        with pytest.raises(EventFileError, match=rf"{name}\.aedat4: "):
+            read_events(bad)
+    assert read_events(path).events.size == 2  # the reader still works in this process

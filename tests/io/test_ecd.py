@@ -53,7 +53,7 @@ def test_comments_and_blank_lines_are_skipped_and_lines_still_counted(tmp_path):
     pytest.param("0.1 1 2 0\n0.2 1 -1 1\n", r"line 2: y=-1 is outside", id="y_out_of_range"),
     pytest.param("0.1 1 2 0\n0.2 1 2 -1\n", r"line 2: polarity p=-1, expected 0 or 1", id="polarity_not_0_or_1"),
     pytest.param("0.1 1.5 2 0\n", r"line 1: x=1.5 is not an integer", id="fractional_coordinate"),
-    pytest.param(b"0.1 1 2 0\n0.2 \xff 2 1\n", r"line 2: column 'x' is not a number", id="non_utf8_bytes"),
+    pytest.param(b"0.1 1 2 0\n0.2 \xff 2 1\n", r"line 2: not UTF-8 text \(byte 0xff at column 5\)", id="non_utf8_bytes"),
 ])
 def test_bad_line_is_an_error_naming_the_line(tmp_path, content, message):
     path = tmp_path / "events.txt"
@@ -150,7 +150,7 @@ def test_sensor_option_disagreeing_with_frames_is_an_error(tmp_path):
 def test_missing_frame_png_names_images_txt_line(tmp_path):
     write_ecd(tmp_path, _recording())
     (tmp_path / "images" / "frame_00000002.png").unlink()
-    with pytest.raises(EventFileError, match=r"images\.txt: line 3: cannot read frame"):
+    with pytest.raises(EventFileError, match=r"images\.txt: line 3: frame .*frame_00000002\.png does not exist"):
         read_events(tmp_path)
 
 
@@ -240,3 +240,83 @@ def test_frame_path_not_utf8_names_the_line(tmp_path):
     (tmp_path / "images.txt").write_bytes(b"# frames\n0.1 images/\xff.png\n")
     with pytest.raises(EventFileError, match=r"images\.txt: line 2: frame path b'images/\\xff\.png' is not UTF-8 text"):
         read_events(tmp_path)
+
+
+# ---------------------------------------------------------------- odd bytes and corrupt frames
+
+
+@pytest.mark.parametrize("data, message", [
+    pytest.param(b"0.1 1 2 0\r0.2 1 2 0\r0.3 1 2 7\r", r"line 3: polarity p=7", id="cr_only_line_ends"),
+    pytest.param(b"0.1 1 2 0\r\n0.2 1 2 x\r\n", r"line 2: column 'p' is not a number", id="crlf"),
+    pytest.param(b"# caf\xe9\n0.1 1 2 0\n", r"line 1: not UTF-8 text \(byte 0xe9 at column 6\)", id="latin1_comment"),
+    pytest.param(b"0.1 1 2 0\n0.2 1\x00 2 0\n", r"line 2: holds a NUL byte \(column 6\)", id="nul_byte"),
+])
+def test_line_ends_and_odd_bytes_name_the_line(tmp_path, data, message):
+    path = tmp_path / "events.txt"
+    path.write_bytes(data)
+    with pytest.raises(EventFileError, match=message):
+        read_ecd(path, sensor_size=SensorSize(32, 24))
+
+
+def _corrupt_png(tmp_path, change):
+    write_ecd(tmp_path, _recording())
+    png = tmp_path / "images" / "frame_00000001.png"
+    png.write_bytes(change(png.read_bytes()))
+    return tmp_path
+
+
+def _rows_missing(data: bytes) -> bytes:
+    import struct
+    import zlib
+
+    from PIL import Image
+    import io
+
+    img = np.asarray(Image.open(io.BytesIO(data)))
+    raw = b"".join(b"\0" + row.tobytes() for row in img[:4])  # 4 of 24 rows, a valid zlib stream
+    idat = zlib.compress(raw)
+    chunk = lambda kind, body: struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    return data[:33] + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
+
+
+@pytest.mark.parametrize("change, message", [
+    pytest.param(lambda d: d[:-30] + bytes(30), r"fails its CRC|no IEND", id="zeroed_tail"),
+    pytest.param(lambda d: d[:60], r"claims \d+ bytes past the end|cut short|no IEND", id="truncated"),
+    pytest.param(lambda d: d[:40] + bytes([d[40] ^ 1]) + d[41:], r"fails its CRC", id="flipped_bit"),
+    pytest.param(_rows_missing, r"pixel data holds \d+ bytes \(4 rows\) of the 792 bytes \(24 rows of 32\)",
+                 id="rows_missing"),
+    pytest.param(lambda d: b"GIF89a" + d[6:], r"not a PNG file", id="not_png"),
+])
+def test_corrupt_frames_are_errors_naming_the_frame(tmp_path, change, message):
+    folder = _corrupt_png(tmp_path, change)
+    with pytest.raises(EventFileError, match=rf"images\.txt: line 2: .*frame_00000001\.png: .*({message})"):
+        read_ecd(folder)
+
+
+def test_a_huge_declared_png_is_refused_before_decoding(tmp_path):
+    import struct
+    import zlib
+
+    def bomb(data):
+        header = struct.pack(">IIBBBBB", 30000, 30000, 8, 0, 0, 0, 0)
+        chunk = lambda kind, body: struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+        return data[:8] + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(bytes(30001 * 10))) + chunk(b"IEND", b"")
+
+    folder = _corrupt_png(tmp_path, bomb)
+    with pytest.raises(EventFileError, match=r"frame_00000001\.png is 30000x30000, the first frame is 32x24"):
+        read_ecd(folder)
+
+
+@pytest.mark.parametrize("line, message", [
+    pytest.param(b"0.5 ../../outside.png", r"frame path '../../outside.png' leaves the folder", id="dotdot"),
+    pytest.param(b"0.5 /dev/zero", r"frame path '/dev/zero' leaves the folder", id="absolute"),
+    pytest.param(b"0.5 images/fr\x00ame.png", r"line 2: holds a NUL byte", id="nul"),
+    pytest.param(b"0.5 images", r"frame .*images is not a regular file", id="folder"),
+])
+def test_frame_paths_stay_in_the_folder(tmp_path, line, message):
+    write_ecd(tmp_path, _recording())
+    lines = (tmp_path / "images.txt").read_bytes().split(b"\n")
+    lines[1] = line
+    (tmp_path / "images.txt").write_bytes(b"\n".join(lines))
+    with pytest.raises(EventFileError, match=message):
+        read_ecd(tmp_path)

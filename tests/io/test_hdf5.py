@@ -12,6 +12,7 @@ import pytest
 
 from evedge.events import SensorSize
 from evedge.io import EventFileError, iter_hdf5_events, read_events, read_hdf5, write_recording
+from evedge.io.hdf5 import seal
 
 
 def _equal_structured(a, b):
@@ -38,7 +39,7 @@ def test_round_trip_with_truth_frames_and_edges(tmp_path, small_recording):
 def test_layout_and_attributes(tmp_path, small_recording):
     path = write_recording(tmp_path / "rec.h5", small_recording())
     with h5py.File(path, "r") as f:
-        assert f.attrs["format"] == "evedge" and int(f.attrs["format_version"]) == 1
+        assert f.attrs["format"] == "evedge" and int(f.attrs["format_version"]) == 2
         assert (int(f.attrs["sensor_width"]), int(f.attrs["sensor_height"])) == (40, 30)
         assert json.loads(f.attrs["metadata"])["scene"] == "test"
         assert list(f["events"]) == ["x", "y", "t", "p"]
@@ -77,9 +78,12 @@ def test_hdf5_but_not_evedge(tmp_path):
         read_hdf5(path)
 
 
-def _tamper(path, action):
+def _tamper(path, action, reseal=True):
+    """Change the file; resealed (checksums recomputed) as a buggy writer would leave it."""
     with h5py.File(path, "a") as f:
         action(f)
+        if reseal:
+            seal(f)
 
 
 def _drop_last_row(name):
@@ -97,7 +101,7 @@ def _drop_last_row(name):
                  r"'events/y' has 500 rows, 'events/x' has 499", id="length_mismatch"),
     pytest.param({"frames": False}, _drop_last_row("truth/valid"),
                  r"'truth/valid' has 499 rows, there are 500 events", id="truth_length_mismatch"),
-    pytest.param({}, lambda f: f.attrs.__setitem__("format_version", 2), "format_version=2 is not supported",
+    pytest.param({}, lambda f: f.attrs.__setitem__("format_version", 3), "format_version=3 is not supported",
                  id="wrong_version"),
 ])
 def test_tampered_file_is_an_error(tmp_path, small_recording, kwargs, action, message):
@@ -185,3 +189,110 @@ def test_written_file_gets_the_umask_mode(tmp_path, small_recording):
 def test_folder_read_as_hdf5_is_named(tmp_path):
     with pytest.raises(EventFileError, match=r"is a folder, not an HDF5 file"):
         read_events(tmp_path, format="hdf5")
+
+
+# ---------------------------------------------------------------- corruption and crafted structures
+
+
+def test_a_changed_value_fails_its_checksum_naming_the_dataset(tmp_path, small_recording):
+    for name in ("events/t", "truth/lifetime_us", "frames/images", "edges/images"):
+        path = write_recording(tmp_path / "rec.h5", small_recording())
+
+        def change(f, name=name):
+            data = f[name][()]
+            flat = data.reshape(-1)
+            flat[5] = flat[5] + 1 if flat.dtype != bool else not flat[5]
+            f[name][...] = data
+
+        _tamper(path, change, reseal=False)
+        with pytest.raises(EventFileError, match=rf"dataset '{name}' does not match its checksum"):
+            read_hdf5(path)
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    _tamper(path, lambda f: f.attrs.__setitem__("sensor_width", 41), reseal=False)
+    with pytest.raises(EventFileError, match=r"the attributes .* do not match their checksum"):
+        read_hdf5(path)
+    _tamper(path, lambda f: f.attrs.__delitem__("checksums"), reseal=False)
+    with pytest.raises(EventFileError, match=r"attribute 'checksums' is missing"):
+        read_hdf5(path)
+
+
+def test_a_corrupt_byte_on_disk_is_an_error_naming_file_and_dataset(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording(n=3000))
+    with h5py.File(path) as f:
+        offset = f["events/t"].id.get_chunk_info(0).byte_offset
+    data = bytearray(path.read_bytes())
+    data[offset + 40] ^= 0x55  # inside the compressed chunk: gzip fails, or decodes to other numbers
+    path.write_bytes(bytes(data))
+    with pytest.raises(EventFileError, match=r"rec\.h5: dataset 'events/t'"):
+        read_hdf5(path)
+    with pytest.raises(EventFileError, match=r"rec\.h5: dataset 'events/t'"):
+        list(iter_hdf5_events(path))
+
+
+@pytest.mark.parametrize("action, message", [
+    pytest.param(lambda f: (f["events"].__delitem__("x"), f["events"].__setitem__("x", h5py.SoftLink("/events/x"))),
+                 r"'events/x' is a soft link", id="soft_link_loop"),
+    pytest.param(lambda f: (f.__delitem__("events"), f.__setitem__("events", h5py.SoftLink("/events"))),
+                 r"'events' is a soft link", id="group_link_loop"),
+    pytest.param(lambda f: (f["events"].__delitem__("x"), f["events"].__setitem__("x", h5py.ExternalLink("/etc/x.h5", "/x"))),
+                 r"'events/x' is an external link", id="external_link"),
+    pytest.param(lambda f: [(f["events"].__delitem__(k), f["events"].create_dataset(k, shape=(2**33,), dtype=d, chunks=(1 << 16,), compression="gzip"))
+                            for k, d in (("x", "i2"), ("y", "i2"), ("t", "i8"), ("p", "?"))],
+                 r"'events/x' declares shape \(8589934592,\) \(131072 chunks\) but stores 0 chunks", id="huge_declared_rows"),
+    pytest.param(lambda f: (f["frames"].__delitem__("images"), f["frames"].create_dataset("images", shape=(3, 30, 40), dtype="f4")),
+                 r"'frames/images' declares 14400 bytes \(\(3, 30, 40\)\) but stores 0", id="unwritten_frames"),
+])
+def test_crafted_structures_are_refused_before_reading(tmp_path, small_recording, action, message):
+    path = write_recording(tmp_path / "rec.h5", small_recording(truth=False))
+    _tamper(path, action, reseal=False)  # the checksums would still match: these fail before any data is read
+    with pytest.raises(EventFileError, match=message):
+        read_hdf5(path)
+
+
+def _with_frames(images):
+    def action(f):
+        del f["frames/images"]
+        f["frames/images"] = images
+    return action
+
+
+@pytest.mark.parametrize("action, message", [
+    pytest.param(_with_frames(np.full((3, 30, 40), np.nan, np.float32)), r"frame 0 pixel \(x=0, y=0\) is nan",
+                 id="nan_frames"),
+    pytest.param(_with_frames(np.full((3, 30, 40), -0.5)), r"is -0.5, expected a finite intensity in \[0, 1\]",
+                 id="negative_frames"),
+    pytest.param(_with_frames(np.full((3, 30, 40), b"x")), r"'frames/images' has dtype \|S1", id="string_frames"),
+    pytest.param(_replace("frames/t_us", np.array([0.0, np.nan, 1.0])), r"'frames/t_us' has dtype float64",
+                 id="float_frame_times"),
+    pytest.param(_replace("edges/images", np.ones((2, 30, 40), np.uint8)), r"'edges/images' has dtype uint8, expected bool",
+                 id="integer_edges"),
+    pytest.param(_replace("truth/lifetime_us", np.full(500, -3.0)), r"event index 0: 'truth/lifetime_us' = -3.0",
+                 id="negative_lifetime"),
+])
+def test_values_outside_their_domain_are_refused(tmp_path, small_recording, action, message):
+    rec = small_recording()
+    rec.truth = np.empty(rec.events.size, dtype=[("lifetime_us", "f8")])
+    rec.truth["lifetime_us"] = 5.0
+    path = write_recording(tmp_path / "rec.h5", rec)
+    _tamper(path, action)
+    with pytest.raises(EventFileError, match=message):
+        read_hdf5(path)
+
+
+def test_version_1_files_without_checksums_are_refused(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    with h5py.File(path, "a") as f:
+        f.attrs["format_version"] = 1
+        del f.attrs["checksums"]
+    with pytest.raises(EventFileError, match="format_version=1 is not supported"):
+        read_hdf5(path)
+
+
+def test_a_half_written_temp_file_is_an_error(tmp_path, small_recording):
+    path = write_recording(tmp_path / "rec.h5", small_recording())
+    data = path.read_bytes()
+    for cut in (100, len(data) // 3, len(data) - 10):
+        tmp = tmp_path / f".rec.h5.{cut}.tmp"
+        tmp.write_bytes(data[:cut])
+        with pytest.raises(EventFileError, match=rf"\.rec\.h5\.{cut}\.tmp"):
+            read_events(tmp, format="hdf5")

@@ -108,3 +108,36 @@ def test_text_file_read_as_mat_is_an_event_file_error(tmp_path):
     path.write_text("0.1 1 1 1\n0.05 2 2 0\n")
     with pytest.raises(EventFileError, match=r"events\.txt: not a readable MATLAB \.mat file"):
         read_mat(path)
+
+
+def test_a_file_that_crashes_scipy_is_an_error_not_a_segfault(tmp_path):
+    import io
+    import struct
+
+    import scipy.io
+
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, {"events": np.array([[1, 2, 1, 10], [3, 4, -1, 20]], dtype=np.int32)}, do_compression=False)
+    data = bytearray(buf.getvalue())
+    assert struct.unpack_from("<I", data, 184)[0] == 5  # the real part's data type: miINT32
+    data[185] = 0xF5  # an unknown data type: scipy's reader dies of SIGSEGV or SIGBUS on it (scipy 1.16)
+    path = tmp_path / "bad.mat"
+    path.write_bytes(bytes(data))
+    with pytest.raises(EventFileError, match=r"bad\.mat: (the scipy \.mat decoder crashed \(SIG[A-Z]+\)|not a readable)"):
+        read_mat(path)
+
+
+def test_a_size_larger_than_the_file_is_an_error(tmp_path):
+    import io
+    import struct
+
+    import scipy.io
+
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, {"events": np.array([[1, 2, 1, 10]], dtype=np.int32)}, do_compression=True)
+    data = bytearray(buf.getvalue())
+    data[132:136] = struct.pack("<I", 2**31 - 8)  # the compressed element claims 2 GiB
+    path = tmp_path / "big.mat"
+    path.write_bytes(bytes(data))
+    with pytest.raises(EventFileError, match=r"big\.mat: "):
+        read_mat(path)

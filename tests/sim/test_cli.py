@@ -78,8 +78,27 @@ def test_bad_overrides_are_an_error_line_not_a_traceback(tmp_path):
 def test_frames_too_big_for_memory_is_named():
     from evedge.sim import simulate as run
 
-    with pytest.raises(MemoryError, match=r"simulate: 10000000000001 frames and edge maps of 128x128 .* GiB"):
+    with pytest.raises(MemoryError, match=r"simulate: 128x128 for 1e\+07 s \(10000000000001 frames at "
+                                          r"frame_rate_hz=1e\+06.* needs about .* GiB"):
         run(SCENES / "stripes.toml", duration_s=1e7, frame_rate_hz=1e6, progress=False)
+
+
+def test_an_existing_output_is_replaced_only_with_overwrite(tmp_path):
+    from evedge.io import read_hdf5
+
+    out = tmp_path / "s.h5"
+    assert _run(["-o", str(out), "--duration", "0.005", "--frame-rate", "0"]).exit_code == 0
+    first = out.read_bytes()
+    res = _run(["-o", str(out), "--duration", "0.01", "--frame-rate", "0"])
+    assert res.exit_code == 1 and "already exists; pass --overwrite to replace it" in res.output
+    assert out.read_bytes() == first
+    res = _run(["-o", str(out), "--duration", "0.01", "--frame-rate", "0", "--overwrite"])
+    assert res.exit_code == 0 and "replaced the earlier output" in res.stderr
+    assert read_hdf5(out).metadata["duration_s"] == 0.01
+    folder = tmp_path / "ecd"
+    assert _run(["-o", str(folder), "--duration", "0.005", "--format", "ecd"]).exit_code == 0
+    res = _run(["-o", str(folder), "--duration", "0.005", "--format", "ecd"])
+    assert res.exit_code == 1 and "pass --overwrite" in res.output
 
 
 def test_simulate_sensor_preset(tmp_path):

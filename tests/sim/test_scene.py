@@ -86,6 +86,12 @@ CASES = [
     (("scene", "duration_s"), 1e300, "scene.duration_s", "must be <= 9000000000000.0"),
     (("events",), {"noise_rate_hz": 1e300}, "events.noise_rate_hz", "must be <= 1000000.0"),
     (("events",), {"jitter_us": 1e300}, "events.jitter_us", "must be <= 1000000000000.0"),
+    (("events",), {"noise_rate_hz": 10**400}, "events.noise_rate_hz", "must be finite, got an integer of 401 digits"),
+    (("shapes",), [{"kind": "circle", "center_px": [10**400, 2], "radius_px": 2}], "shapes[0].center_px",
+     "expected an array of 2 finite numbers"),
+    (("scene", "frame_rate_hz"), 2**63, "scene.frame_rate_hz", "must be <= 1000000.0"),
+    (("events",), {"min_step_s": 1e-300, "min_rate_hz": 1e300}, "events.min_rate_hz", "must be <= 1000000.0"),
+    (("events",), {"min_step_s": 1e-300}, "events.min_step_s", "must be >= 1e-09"),
 ]
 
 
@@ -174,6 +180,16 @@ def test_numpy_scalars_are_numbers_and_non_finite_times_are_refused():
     for func in (render_frame, edge_map):
         with pytest.raises(ValueError, match=f"{func.__name__}: t_s must be a finite number of seconds, got nan"):
             func(scene, float("nan"))
+
+
+def test_a_run_that_cannot_fit_in_memory_is_refused_before_work():
+    from dataclasses import replace
+
+    scene = parse_scene(_base(), source="scenes/noisy.toml")
+    noisy = replace(scene, params=replace(scene.params, noise_rate_hz=1e6), duration_s=0.05)
+    with pytest.raises(MemoryError, match=r"about 2.16e\+09 noise events at noise_rate_hz=1e\+06\).* needs about "
+                                          r"\d+ GiB; this machine has"):
+        simulate(noisy, progress=False)
 
 
 @pytest.mark.parametrize("preset", ["davis346", "dvxplorer", "gen3", "gen4"])

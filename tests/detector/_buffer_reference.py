@@ -1,0 +1,82 @@
+"""The event buffer's previous kernel (before the padded-state rewrite), kept as the tests' reference.
+
+Same decisions by construction of the tests: ``tests/detector/test_buffer_kernel.py``
+compares the keep masks of :func:`evedge.detector.buffer.filter_events` (and its
+streaming and strip forms) against :func:`reference_mask`, built on this kernel,
+which itself is checked against the O(n^2) definition in ``test_buffer.py``.
+"""
+
+import numpy as np
+from numba import njit
+
+from evedge.events import SensorSize
+
+_NEVER = np.iinfo(np.int64).min
+
+
+@njit(cache=True)
+def buffer_scan_reference(x, y, t, p, prev, supported, n_old, base_g, last_t, head_g, covered_g, width, height, tau_us,
+                 causal):
+    """Mark support for events ``n_old..`` of the arrays (events ``0..n_old`` are carried over).
+
+    Arrays ``x, y, t, p, prev, supported`` hold the unreleased events, the first of which
+    has global index ``base_g``. ``last_t`` and ``head_g`` are per pixel and polarity
+    (index ``(p * height + y) * width + x``): the latest timestamp and the global index of
+    the latest event there. ``prev`` chains the events of one pixel and polarity.
+    ``covered_g`` (per pixel and polarity, -1 = none) is the global index of the newest
+    event of that pixel reached by an earlier backward walk: that walk marked every
+    event of the pixel up to it no older than its own ``t - tau``, which is no later
+    than the present walk's (time-sorted stream), so the present walk stops there
+    (the marks are the same; on dense edges most of the walking is saved).
+    Returns nothing; updates ``supported``, ``prev``, ``last_t``, ``head_g``, ``covered_g`` in place.
+    """
+    n = x.shape[0]
+    for k in range(n_old, n):
+        xk = x[k]
+        yk = y[k]
+        tk = t[k]
+        plane = p[k] * height
+        lo = tk - tau_us
+        n_support = 0
+        x0 = max(xk - 1, 0)
+        x1 = min(xk + 1, width - 1)
+        # the 3x3 neighbourhood over clipped ranges; the support test is branch-free
+        # (whether a neighbour fired within tau is unpredictable), the walk is not
+        for yy in range(max(yk - 1, 0), min(yk + 1, height - 1) + 1):
+            row = (plane + yy) * width
+            for xx in range(x0, x1 + 1):
+                q = row + xx
+                lt = last_t[q]
+                # a neighbour (not the pixel itself) fired within tau before (or at) this event
+                near = (lt >= lo) & (lt != _NEVER) & ((xx != xk) | (yy != yk))
+                n_support += near
+                if near and not causal:
+                    # ...and this event supports every unreleased event of that
+                    # neighbour within tau before it
+                    g = head_g[q]
+                    stop = max(covered_g[q], base_g - 1)
+                    covered_g[q] = g
+                    while g > stop:
+                        j = g - base_g
+                        if t[j] < lo:
+                            break
+                        supported[j] = True
+                        g = prev[j]
+        if n_support > 0:
+            supported[k] = True
+        pix = (plane + yk) * width + xk
+        prev[k] = head_g[pix]
+        head_g[pix] = base_g + k
+        last_t[pix] = tk
+
+
+def reference_mask(events, sensor_size: SensorSize, tau_us: int, causal: bool) -> np.ndarray:
+    """Keep mask of the previous kernel (one shot)."""
+    w, h = sensor_size.width, sensor_size.height
+    n = events.shape[0]
+    cols = [np.ascontiguousarray(events[f], dtype=np.int64) for f in ("x", "y", "t", "p")]
+    supported = np.zeros(n, dtype=bool)
+    buffer_scan_reference(*cols, np.full(n, -1, dtype=np.int64), supported, 0, 0,
+                          np.full(2 * w * h, _NEVER, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
+                          np.full(2 * w * h, -1, dtype=np.int64), w, h, tau_us, causal)
+    return supported

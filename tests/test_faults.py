@@ -1,0 +1,175 @@
+"""Faults: ``kill -9`` at random points and a full disk never leave an output a reader takes as complete.
+
+Each command runs as a child process (``python -m evedge.cli ...``) and is
+killed with SIGKILL after a seeded random delay inside its measured run time.
+Afterwards the output must be the earlier good one or the new complete one,
+never a mix, and a rerun must succeed. A full disk is a small tmpfs when this
+machine lets the test mount one (root), else a file-size limit (``EFBIG``, the
+same write failure for the code).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "stripes.toml"
+
+
+def _cli(*args, preexec_fn=None):
+    return subprocess.Popen([sys.executable, "-m", "evedge.cli", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=preexec_fn, cwd=ROOT)
+
+
+def _run(*args, preexec_fn=None) -> tuple[int, str, float]:
+    start = time.monotonic()
+    proc = _cli(*args, preexec_fn=preexec_fn)
+    out, err = proc.communicate(timeout=120)
+    return proc.returncode, out + err, time.monotonic() - start
+
+
+def _kill_at(delay_s: float, *args) -> None:
+    proc = _cli(*args)
+    try:
+        proc.wait(timeout=delay_s)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+
+
+def _h5_digest(path: Path) -> str:
+    from evedge._fuzz.targets import recording_digest
+    from evedge.io import read_hdf5
+
+    return recording_digest(read_hdf5(path))
+
+
+def _detection_digest(out: Path) -> str:
+    """What a reader of a detect output sees, after checking it is complete and consistent."""
+    import h5py
+    from PIL import Image
+
+    with h5py.File(out / "detection.h5", "r") as f:
+        times, frames = f["edges/t_us"][()], f["edges/images"][()]
+    pngs = sorted((out / "edges").iterdir())
+    assert [p.name for p in pngs] == [f"edges_{i:06d}_{int(t)}us.png" for i, t in enumerate(times)]
+    from evedge.video import edge_png
+
+    for png, frame in zip(pngs, frames):
+        assert np.array_equal(np.asarray(Image.open(png)), edge_png(frame.astype(bool)))
+    return hashlib.sha256(times.tobytes() + frames.tobytes()).hexdigest()
+
+
+def _events_file(path: Path, n: int = 40_000) -> Path:
+    from evedge._fuzz.corpus import small_recording
+    from evedge.io import write_recording
+
+    return write_recording(path, small_recording(n, 14, frames=False, truth=False))
+
+
+@pytest.mark.parametrize("command", ["simulate", "detect"])
+def test_kill_9_leaves_the_old_or_the_new_output_and_a_rerun_succeeds(tmp_path, command):
+    rng = np.random.default_rng(14)
+    if command == "simulate":
+        out = tmp_path / "s.h5"
+        args = lambda d: ("simulate", SCENE, "-o", out, "--duration", d, "--quiet", "--overwrite")  # noqa: E731
+        digest, first, second = _h5_digest, "0.02", "0.1"
+    else:
+        src = _events_file(tmp_path / "src.h5")
+        out = tmp_path / "det"
+        args = lambda d: ("detect", src, "-o", out, "--fps", d, "--quiet", "--overwrite",  # noqa: E731
+                          "--method", "count")
+        digest, first, second = _detection_digest, "10", "1000"
+    code, text, full_s = _run(*args(first))
+    assert code == 0, text
+    old = digest(out)
+    for delay in rng.uniform(0.4, 1.2, 2) * full_s:  # inside the longer run: reading, computing, writing
+        _kill_at(delay, *args(second))
+        seen = digest(out)  # raises if the output is incomplete or inconsistent
+        assert seen == old or _run(*args(first))[0] == 0 and digest(out) == old, \
+            f"killed after {delay:.2f} s: neither the earlier output nor a complete new one"
+    code, text, _ = _run(*args(second))
+    assert code == 0 and digest(out) != old, text
+    assert not [p.name for p in out.parent.iterdir() if p.name.endswith(".tmp")]  # killed runs' leftovers removed
+
+
+def test_kill_9_during_bench_leaves_whole_files_and_a_rerun_succeeds(tmp_path):
+    out = tmp_path / "b"
+    args = ("bench", "ransac", "-o", out, "--quick", "--repetitions", "2", "--no-progress", "--overwrite")
+    _kill_at(float(np.random.default_rng(14).uniform(2.0, 5.0)), *args)
+    for path in out.iterdir() if out.exists() else ():
+        if path.suffix == ".json":
+            json.loads(path.read_text())  # never half a file
+    code, text, _ = _run(*args)
+    assert code == 0, text
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []  # no temp file left by the rerun
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A folder on a 256 KiB tmpfs, or None and a file-size limit when mounting is not allowed."""
+    mount = tmp_path / "small"
+    mount.mkdir()
+    ok = os.geteuid() == 0 and subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mount)],
+                                              capture_output=True).returncode == 0
+    yield (mount, None) if ok else (mount, 256 * 1024)
+    if ok:
+        subprocess.run(["umount", str(mount)], check=True)
+
+
+def test_a_full_disk_is_an_error_line_and_keeps_the_earlier_output(tmp_path, full_disk):
+    folder, fsize = full_disk
+
+    def limit():
+        if fsize:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # write() fails with EFBIG instead
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+
+    src = _events_file(tmp_path / "src.h5")
+    # a small earlier output fits; the big new one does not
+    small = ("detect", src, "-o", folder / "det", "--times", "100000", "--quiet", "--method", "count",
+             "--no-embed-events")
+    code, text, _ = _run(*small, preexec_fn=limit)
+    assert code == 0, text
+    old = _detection_digest(folder / "det")
+    code, text, _ = _run("detect", src, "-o", folder / "det", "--fps", "400", "--quiet", "--overwrite",
+                         "--method", "count", "--no-embed-events", preexec_fn=limit)
+    assert code == 1 and "Traceback" not in text and "cannot write the output" in text, text
+    assert _detection_digest(folder / "det") == old
+    assert sorted(p.name for p in folder.iterdir()) == ["det"]  # no temp folder left
+    code, text, _ = _run("simulate", SCENE, "-o", folder / "s.h5", "--duration", "0.2", "--quiet", preexec_fn=limit)
+    assert code == 1 and "Traceback" not in text and "Error:" in text, text
+    assert sorted(p.name for p in folder.iterdir()) == ["det"]
+    code, text, _ = _run("bench", "ransac", "-o", folder / "b", "--quick", "--repetitions", "2", "--no-progress",
+                         preexec_fn=limit)
+    assert code == 1 and "Traceback" not in text and "cannot write the output" in text, text
+
+
+def test_kill_9_during_dataset_keeps_only_whole_sequences_and_a_rerun_completes(tmp_path):
+    from evedge.io import read_hdf5
+
+    out = tmp_path / "ds"
+    args = ("dataset", "small", "-o", out, "--workers", "1", "--quiet")
+    _kill_at(float(np.random.default_rng(14).uniform(3.0, 6.0)), *args)
+    rows = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()] \
+        if (out / "manifest.jsonl").exists() else []
+    for row in rows:
+        if row["status"] == "ok":
+            for rel, digest in row["files"].items():
+                assert hashlib.sha256((out / rel).read_bytes()).hexdigest() == digest
+    for h5 in out.rglob("*.h5") if out.exists() else ():
+        read_hdf5(h5)  # every sequence file present is whole (checksums verified)
+    code, text, _ = _run(*args)
+    assert code == 0 and "6/6 sequences ok" in text, text
+    assert not list(out.rglob("*.tmp"))
