@@ -55,14 +55,13 @@ import io
 import json
 import math
 import time
-import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from evedge.sim.dataset import PARAMETERS, DatasetError, DatasetSpec, parse_dataset
-from evedge.sim.scene import _Table
+from evedge.sim.scene import _read_toml, _Table
 
 from .results import ResultsTable
 
@@ -160,13 +159,7 @@ def parse_sweep(data: dict, source: str = "<sweep>") -> SweepSpec:
 def load_sweep(path) -> SweepSpec:
     """Read and validate a sweep spec file (TOML); errors as :func:`parse_sweep`."""
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-        data = tomllib.loads(text)
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read sweep spec: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{path}: not valid TOML: {exc}") from None
+    text, data = _read_toml(path, "sweep spec", DatasetError)
     sweep = parse_sweep(data, str(path))
     return replace(sweep, dataset=replace(sweep.dataset, text=text))
 

@@ -171,24 +171,31 @@ def _stripe_dark_fraction(uc, nx, ny, period, duty):
     return min(1.0, max(0.0, total))
 
 
+@njit(cache=True, inline="always")
+def _disk_pixel_coverage(x, y, cx, cy, r):
+    """Exact fraction (clipped to [0, 1]) of pixel ``(x, y)``'s square inside the disk ``(cx, cy, r)``;
+    the area is computed only for pixels the circle may cross. Inlined into its callers."""
+    d = math.sqrt((x - cx) ** 2 + (y - cy) ** 2)
+    if d + _HALF_DIAG <= r:
+        return 1.0
+    if d - _HALF_DIAG >= r:
+        return 0.0
+    return min(1.0, max(0.0, _disk_box_area(cx, cy, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)))
+
+
 @njit(cache=True)
 def _render_disk(out, edge, width, height, cx, cy, r, value, background, edge_tol):
+    """Add disk ``(cx, cy, r)`` of ``value`` over ``background`` to ``out``; mark on ``edge`` the pixels
+    it covers partly (coverage strictly between ``edge_tol`` and ``1 - edge_tol``, ``edge_tol >= 0``)."""
     c0 = max(0, int(math.floor(cx - r + 0.5)))
     c1 = min(width - 1, int(math.floor(cx + r + 0.5)))
     r0 = max(0, int(math.floor(cy - r + 0.5)))
     r1 = min(height - 1, int(math.floor(cy + r + 0.5)))
     for y in range(r0, r1 + 1):
         for x in range(c0, c1 + 1):
-            d = math.sqrt((x - cx) ** 2 + (y - cy) ** 2)
-            if d + _HALF_DIAG <= r:
-                cov = 1.0
-            elif d - _HALF_DIAG >= r:
-                cov = 0.0
-            else:
-                cov = _disk_box_area(cx, cy, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)
-                cov = min(1.0, max(0.0, cov))
-                if edge_tol < cov < 1.0 - edge_tol:
-                    edge[y * width + x] = True
+            cov = _disk_pixel_coverage(x, y, cx, cy, r)
+            if edge_tol < cov < 1.0 - edge_tol:
+                edge[y * width + x] = True
             if cov > 0.0:
                 out[y * width + x] += cov * (value - background)
 

@@ -138,6 +138,21 @@ def _scan(i0, i1, eps, e_hi, e_lo, spans, n_spans, cand):
     return m, math.log(ratio)
 
 
+@njit(cache=True, inline="always")
+def _first_step(l1, lr, cp, cn):
+    """``(on, step)`` of the first level ``l1`` reaches from the reference ``lr``: ``lr + cp`` (ON),
+    ``lr - cn`` (OFF), or ``step = 0.0`` for none (thresholds are > 0). Inlined into its callers.
+
+    One loop serves both polarities: ``lr + step`` is ``lr + cp`` (ON) or ``lr - cn`` (OFF) to
+    the bit, since a - b == a + (-b) in IEEE arithmetic.
+    """
+    if l1 >= lr + cp:
+        return True, cp
+    if l1 <= lr - cn:
+        return False, -cn
+    return False, 0.0
+
+
 @njit(cache=True)
 def _crossings(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
                seq, jitter_s, jitter_seed, fill, cand, n_cand, out_pix, out_t_true, out_t, out_p):
@@ -159,15 +174,8 @@ def _crossings(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, last_t, refrac
         cn = cneg[i]
         last = last_t[i]
         k = seq[i]
-        # one loop for both polarities: ``lr + step`` is ``lr + cp`` (ON) or
-        # ``lr - cn`` (OFF) to the bit, since a - b == a + (-b) in IEEE arithmetic
-        if l1 >= lr + cp:
-            on = True
-            step = cp
-        elif l1 <= lr - cn:
-            on = False
-            step = -cn
-        else:
+        on, step = _first_step(l1, lr, cp, cn)
+        if step == 0.0:
             continue  # no crossing: reference level unchanged
         while (l1 >= lr + step) if on else (l1 <= lr + step):
             lr += step

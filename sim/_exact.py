@@ -18,8 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ._coverage import _HALF_DIAG, _disk_box_area, _stripe_dark_fraction
-from ._events import _half_normal
+from ._coverage import _HALF_DIAG, _disk_pixel_coverage, _stripe_dark_fraction
+from ._events import _first_step, _half_normal
 
 
 @njit(cache=True)
@@ -168,13 +168,7 @@ def _shapes_at(pix, t, motion, width, center_x, center_y, qx, qy, starts, values
             mx = center_x + c * dx - sn * dy + sx
             my = center_y + sn * dx + c * dy + sy
             r = radii[k]
-            d = math.sqrt((x - mx) ** 2 + (y - my) ** 2)
-            if d + _HALF_DIAG <= r:
-                cov = 1.0
-            elif d - _HALF_DIAG >= r:
-                cov = 0.0
-            else:
-                cov = min(1.0, max(0.0, _disk_box_area(mx, my, r, x - 0.5, y - 0.5, x + 0.5, y + 0.5)))
+            cov = _disk_pixel_coverage(x, y, mx, my, r)
             if cov > 0.0:
                 value += cov * (circle_values[k] - background)
         if clip:
@@ -306,13 +300,8 @@ def _crossing_levels(i0, i1, t0, t1, eps, lref, e_hi, e_lo, cpos, cneg, fill, ca
         lr = lref[i]
         cp = cpos[i]
         cn = cneg[i]
-        if l1 >= lr + cp:
-            on = True
-            step = cp
-        elif l1 <= lr - cn:
-            on = False
-            step = -cn
-        else:
+        on, step = _first_step(l1, lr, cp, cn)
+        if step == 0.0:
             continue
         while (l1 >= lr + step) if on else (l1 <= lr + step):
             lr += step

@@ -1,4 +1,5 @@
-"""pyrender/EGL plumbing shared by the 3-D renderers: lazy import, single-sample framebuffers, clean deletion.
+"""pyrender/EGL plumbing shared by the 3-D renderers: lazy import, single-sample framebuffers, clean deletion,
+and their common camera set-up and life cycle (:class:`_PinholeRenderer`).
 
 Importing this module touches no OpenGL; :func:`_import_pyrender` does, setting
 ``PYOPENGL_PLATFORM=egl`` and ``PYGLET_HEADLESS=1`` first (only if unset).
@@ -9,6 +10,8 @@ from __future__ import annotations
 import os
 
 import numpy as np
+
+from .trajectory import _finite, _Trajectory
 
 # Clip planes of the OpenGL camera. The near plane clips geometry closer than 5 cm; a 24-bit
 # depth buffer with these planes resolves 0.1 mm at 5 m, ample for the occlusion test (depth
@@ -142,3 +145,93 @@ def _grey_renderer_class(pyrender, GL, samples: int):
             return np.frombuffer(buf, dtype=np.uint8).reshape(height, width)[::-1], None
 
     return _GreyRenderer
+
+
+def _offscreen(pyrender, renderer_class, width: int, height: int):
+    """A pyrender OffscreenRenderer of ``width x height`` drawing with ``renderer_class(width, height)``."""
+    renderer = pyrender.OffscreenRenderer(width, height)
+    try:
+        renderer._renderer.delete()
+        renderer._renderer = renderer_class(width, height)
+    except Exception:
+        _delete_offscreen(renderer)
+        raise
+    return renderer
+
+
+class _PinholeRenderer:
+    """Camera set-up and life cycle shared by the 3-D renderers (boxes, meshes).
+
+    :meth:`_set_camera` validates and stores the image size, intrinsics, background and
+    trajectory; :meth:`_add_camera` puts the matching pyrender camera in a scene; :meth:`close`
+    (idempotent; also the context manager's exit) drops the caches (``_drop_caches``) and
+    frees the OpenGL context, if one was made.
+    """
+
+    _renderer = None
+    _closed = False
+
+    def _set_camera(self, width, height, fx, fy, cx, cy, background, trajectory, supersample,
+                    odd_supersample: bool = False) -> None:
+        for name, value in (("width", width), ("height", height), ("supersample", supersample)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+            if value <= 0:
+                raise ValueError(f"{name} must be > 0, got {value}")
+        if odd_supersample and supersample % 2 == 0:
+            raise ValueError(f"supersample must be odd (a sample at the pixel centre), got {supersample}")
+        fx, fy, cx, cy = (_finite(v, n) for v, n in ((fx, "fx"), (fy, "fy"), (cx, "cx"), (cy, "cy")))
+        if fx <= 0 or fy <= 0:
+            raise ValueError(f"fx and fy must be > 0, got fx={fx}, fy={fy}")
+        background = _finite(background, "background")
+        if not 0.0 <= background <= 1.0:
+            raise ValueError(f"background must lie in [0, 1], got {background}")
+        if not isinstance(trajectory, _Trajectory):
+            raise TypeError(f"trajectory must be a CameraTrajectory or KeyframeTrajectory, got "
+                            f"{type(trajectory).__name__}")
+        self.width, self.height = int(width), int(height)
+        self.fx, self.fy, self.cx, self.cy = fx, fy, cx, cy
+        self.background = background
+        self.supersample = int(supersample)
+        self.trajectory = trajectory
+        # Normalised image coordinates of the pixel centres (x = X/Z, y = Y/Z).
+        self._x = ((np.arange(self.width, dtype=np.float64) - cx) / fx)[None, :].repeat(self.height, 0)
+        self._y = ((np.arange(self.height, dtype=np.float64) - cy) / fy)[:, None].repeat(self.width, 1)
+
+    def _add_camera(self, pyrender, scene) -> None:
+        """Add the camera (intrinsics scaled by the supersampling; OpenGL pixel centres) to ``scene``."""
+        s = self.supersample
+        camera = pyrender.IntrinsicsCamera(fx=s * self.fx, fy=s * self.fy, cx=s * (self.cx + 0.5),
+                                           cy=s * (self.cy + 0.5), znear=ZNEAR_M, zfar=ZFAR_M)
+        self._camera_node = scene.add(camera, pose=np.eye(4))
+        self._scene = scene
+
+    def _draw(self, t_s: float):
+        """The colour buffer pyrender draws at ``t_s`` (scene, camera and ``_flags`` set up by
+        ``_build_gl`` on first use)."""
+        if self._renderer is None:
+            self._build_gl()
+        self._scene.set_pose(self._camera_node, opencv_to_gl_pose(self.trajectory.pose(t_s)))
+        return self._renderer.render(self._scene, flags=self._flags)[0]
+
+    def _drop_caches(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Free the OpenGL context, if one was made (idempotent); the renderer cannot render afterwards."""
+        self._closed = True
+        self._drop_caches()
+        if self._renderer is not None:
+            renderer, self._renderer = self._renderer, None
+            _delete_offscreen(renderer)
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False

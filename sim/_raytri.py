@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._visibility import _pose_ray
+
 
 @njit(cache=True)
 def _first_hit_depth_kernel(x, y, rot, centre, v0, e1, e2, znear, out_z):
@@ -16,11 +18,7 @@ def _first_hit_depth_kernel(x, y, rot, centre, v0, e1, e2, znear, out_z):
     ignored, as the OpenGL near plane clips them. Brute force over the triangles.
     """
     for i in range(x.shape[0]):
-        m = i if rot.shape[0] > 1 else 0
-        d0 = rot[m, 0, 0] * x[i] + rot[m, 0, 1] * y[i] + rot[m, 0, 2]
-        d1 = rot[m, 1, 0] * x[i] + rot[m, 1, 1] * y[i] + rot[m, 1, 2]
-        d2 = rot[m, 2, 0] * x[i] + rot[m, 2, 1] * y[i] + rot[m, 2, 2]
-        o0, o1, o2 = centre[m, 0], centre[m, 1], centre[m, 2]
+        o0, o1, o2, d0, d1, d2 = _pose_ray(rot, centre, i, x[i], y[i])
         best = np.inf
         for k in range(v0.shape[0]):
             a0, a1, a2 = e1[k, 0], e1[k, 1], e1[k, 2]

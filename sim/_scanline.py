@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -74,3 +75,25 @@ def _prefix_rows(acc, left, width, out):
             s += acc[i, j]
             v = left[i] + s
             out[i, j] = min(max(v, 0.0), 1.0)
+
+
+def _piece_jumps(p, q, left, right, values, width, height):
+    """Accumulator (H, W + 1) of the intensity jumps of visible pieces ``p -> q`` along each row.
+
+    ``left`` and ``right`` index ``values`` (the intensity on each side of a piece); the
+    image is the left border's value plus the prefix sum of a row's accumulator. Horizontal
+    pieces are crossed by no scanline and are skipped.
+    """
+    acc = np.zeros((height, width + 1))
+    u0, v0, u1, v1 = p[:, 0], p[:, 1], q[:, 0], q[:, 1]
+    sloped = v0 != v1  # horizontal pieces are crossed by no scanline
+    # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
+    up = v1 < v0
+    jump = np.where(up, values[left] - values[right], values[right] - values[left])
+    # each piece from its upper end (smaller v) to its lower end
+    su0, sv0 = np.where(up, u1, u0)[sloped], np.where(up, v1, v0)[sloped]
+    su1, sv1 = np.where(up, u0, u1)[sloped], np.where(up, v0, v1)[sloped]
+    _accumulate_pieces(acc, width, height, np.ascontiguousarray(su0), np.ascontiguousarray(sv0),
+                       np.ascontiguousarray(su1), np.ascontiguousarray(sv1),
+                       np.ascontiguousarray(jump[sloped], dtype=np.float64))
+    return acc

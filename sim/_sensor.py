@@ -14,7 +14,7 @@ import math
 
 from numba import njit
 
-from ._events import _half_normal, _hash_uniform
+from ._events import _first_step, _half_normal, _hash_uniform
 
 #: v2e's floor of the intensity that sets the photoreceptor bandwidth: ``(255 I + 20) / 275``.
 _V2E_INTENSITY_OFFSET = 20.0 / 255.0
@@ -95,15 +95,7 @@ def _sensor_interval(l0, l1, t0, t1, lref, cpos, cneg, last_t, refractory_s, seq
             else:
                 tb = t1
                 lb = b
-            if lb >= lr + cp:
-                on = True
-                step = cp
-            elif lb <= lr - cn:
-                on = False
-                step = -cn
-            else:
-                on = False
-                step = 0.0
+            on, step = _first_step(lb, lr, cp, cn)
             if step != 0.0:
                 while (lb >= lr + step) if on else (lb <= lr + step):
                     lr += step

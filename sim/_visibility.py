@@ -227,6 +227,20 @@ def _visible_pieces_kernel(edges, rot, centre, fx, fy, cx, cy, znear, u_lo, v_lo
     return out[:k].copy(), left_out[:k].copy(), right_out[:k].copy()
 
 
+@njit(cache=True, inline="always")
+def _pose_ray(rot, centre, i, x, y):
+    """Camera centre ``(c0, c1, c2)`` and world direction ``(d0, d1, d2) = R (x, y, 1)`` of point ``i``'s ray.
+
+    ``rot`` (M, 3, 3) and ``centre`` (M, 3) are one pose for all points (M = 1) or one per
+    point. Inlined into its callers (the ray casting kernels of both 3-D renderers).
+    """
+    m = i if rot.shape[0] > 1 else 0
+    d0 = rot[m, 0, 0] * x + rot[m, 0, 1] * y + rot[m, 0, 2]
+    d1 = rot[m, 1, 0] * x + rot[m, 1, 1] * y + rot[m, 1, 2]
+    d2 = rot[m, 2, 0] * x + rot[m, 2, 1] * y + rot[m, 2, 2]
+    return centre[m, 0], centre[m, 1], centre[m, 2], d0, d1, d2
+
+
 @njit(cache=True)
 def _point_depth_kernel(x, y, rot, centre, lo, hi, normals, offsets, out_id, out_z):
     """Face seen at normalised image points ``(x, y)`` (camera ray ``(x, y, 1)``) and its z-depth.
@@ -236,11 +250,7 @@ def _point_depth_kernel(x, y, rot, centre, lo, hi, normals, offsets, out_id, out
     ``inf`` for the background (identifier 0).
     """
     for i in range(x.shape[0]):
-        m = i if rot.shape[0] > 1 else 0
-        d0 = rot[m, 0, 0] * x[i] + rot[m, 0, 1] * y[i] + rot[m, 0, 2]
-        d1 = rot[m, 1, 0] * x[i] + rot[m, 1, 1] * y[i] + rot[m, 1, 2]
-        d2 = rot[m, 2, 0] * x[i] + rot[m, 2, 1] * y[i] + rot[m, 2, 2]
-        c0, c1, c2 = centre[m, 0], centre[m, 1], centre[m, 2]
+        c0, c1, c2, d0, d1, d2 = _pose_ray(rot, centre, i, x[i], y[i])
         f = _first_face(c0, c1, c2, d0, d1, d2, lo, hi)
         out_id[i] = f
         if f == 0:

@@ -476,10 +476,7 @@ class EventConverter:
                 self.n_rejected += 1
                 dt = max(p.min_step_s, 0.5 * (t1 - self.t))
             n_cand, _ = self._scan(self._i, i1, spans, n_spans)
-            self._interval(self.t, t1, self._i, i1, n_cand)
-            self.t = t1
-            self._accept(i1)
-            self.n_samples += 1
+            self._advance(t1, i1, n_cand)
             return
         limit = p.lambda_ * self._c_min
         dt = self._propose()
@@ -491,10 +488,7 @@ class EventConverter:
             t1 = min(self.t + dt, self.duration_s)
             i1, spans, n_spans = self._candidate(t1)
             n_cand, _ = self._scan(self._i, i1, spans, n_spans)
-            self._interval(self.t, t1, self._i, i1, n_cand)
-            self.t = t1
-            self._accept(i1)
-            self.n_samples += 1
+            self._advance(t1, i1, n_cand)
             return
         while True:
             t1 = min(self.t + dt, self.duration_s)
@@ -508,6 +502,10 @@ class EventConverter:
         grow = 2.0 if dl <= 0 else min(2.0, 0.9 * limit / dl)
         if t1 < self.duration_s:  # the clipped last step says nothing about the next one
             self._dt = step * grow
+        self._advance(t1, i1, n_cand)
+
+    def _advance(self, t1: float, i1: np.ndarray, n_cand: int) -> None:
+        """Emit the events of ``[self.t, t1]`` (``n_cand`` candidates scanned) and make ``t1`` the present sample."""
         self._interval(self.t, t1, self._i, i1, n_cand)
         self.t = t1
         self._accept(i1)

@@ -25,7 +25,6 @@ the same way: ``spec.toml: key 'parameters.speed_px_s.log_uniform': ...``.
 from __future__ import annotations
 
 import math
-import tomllib
 import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -33,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .scene import MAX_DURATION_S, SENSOR_PRESETS, SHAPE_KINDS, SceneError, _Table, parse_scene
+from .scene import MAX_DURATION_S, SENSOR_PRESETS, SHAPE_KINDS, SceneError, _read_toml, _Table, parse_scene
 
 #: Scene families a dataset can draw from: the planar scene kinds, and boxes (a ``mesh`` scene).
 FAMILIES = ("stripes", "shapes", "boxes")
@@ -328,13 +327,7 @@ def load_dataset(path) -> DatasetSpec:
         Unreadable file, invalid TOML or UTF-8, or any invalid key (named).
     """
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-        data = tomllib.loads(text)
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot read dataset spec: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{path}: not valid TOML: {exc}") from None
+    text, data = _read_toml(path, "dataset spec", DatasetError)
     return replace(parse_dataset(data, source=str(path)), text=text)
 
 

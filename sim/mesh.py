@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ._gl import ZFAR_M, ZNEAR_M, _delete_offscreen, _grey_renderer_class, _import_pyrender, opencv_to_gl_pose
+from ._gl import ZNEAR_M, _grey_renderer_class, _import_pyrender, _offscreen, _PinholeRenderer
 from ._motion_field import image_speed_bound, motion_field
 from ._raytri import _first_hit_depth_kernel
-from .trajectory import _finite, _Trajectory, rotation_from_rpy
+from .trajectory import _finite, rotation_from_rpy
 
 __all__ = ["SceneMesh", "RasterMeshRenderer", "procedural_texture", "load_mesh_file", "primitive_mesh",
            "box_mesh", "scene_meshes"]
@@ -350,7 +350,7 @@ def scene_meshes(boxes, meshes, source: str = "<scene>") -> list[SceneMesh]:
     return out
 
 
-class RasterMeshRenderer:
+class RasterMeshRenderer(_PinholeRenderer):
     """Render intensity, depth, motion field and edges of textured meshes through pyrender.
 
     Parameters
@@ -400,33 +400,15 @@ class RasterMeshRenderer:
 
     def __init__(self, width, height, fx, fy, cx, cy, meshes, trajectory, background=0.5, supersample=2,
                  multisample=4):
-        for name, value in (("width", width), ("height", height), ("supersample", supersample)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-            if value <= 0:
-                raise ValueError(f"{name} must be > 0, got {value}")
-        fx, fy, cx, cy = (_finite(v, n) for v, n in ((fx, "fx"), (fy, "fy"), (cx, "cx"), (cy, "cy")))
-        if fx <= 0 or fy <= 0:
-            raise ValueError(f"fx and fy must be > 0, got fx={fx}, fy={fy}")
-        background = _finite(background, "background")
-        if not 0.0 <= background <= 1.0:
-            raise ValueError(f"background must lie in [0, 1], got {background}")
-        if not isinstance(trajectory, _Trajectory):
-            raise TypeError(f"trajectory must be a CameraTrajectory or KeyframeTrajectory, got "
-                            f"{type(trajectory).__name__}")
+        self._set_camera(width, height, fx, fy, cx, cy, background, trajectory, supersample)
         meshes = list(meshes)
         for k, m in enumerate(meshes):
             if not isinstance(m, SceneMesh):
                 raise TypeError(f"meshes[{k}] must be a SceneMesh, got {type(m).__name__}")
-        self.width, self.height = int(width), int(height)
-        self.fx, self.fy, self.cx, self.cy = fx, fy, cx, cy
-        self.background = background
-        self.supersample = int(supersample)
         if isinstance(multisample, bool) or multisample not in (0, 2, 4, 8, 16):
             raise ValueError(f"multisample must be 0, 2, 4, 8 or 16 (llvmpipe gives 0 and 4), got {multisample!r}")
         self.multisample = int(multisample)
         self.meshes = tuple(meshes)
-        self.trajectory = trajectory
         if meshes:
             tris = np.concatenate([m.vertices_m[m.faces] for m in meshes])  # (T, 3, 3)
             self._lo = np.array([m.vertices_m.min(axis=0) for m in meshes])
@@ -437,10 +419,6 @@ class RasterMeshRenderer:
         self._v0 = np.ascontiguousarray(tris[:, 0])
         self._e1 = np.ascontiguousarray(tris[:, 1] - tris[:, 0])
         self._e2 = np.ascontiguousarray(tris[:, 2] - tris[:, 0])
-        self._x = ((np.arange(self.width, dtype=np.float64) - cx) / fx)[None, :].repeat(self.height, 0)
-        self._y = ((np.arange(self.height, dtype=np.float64) - cy) / fy)[:, None].repeat(self.width, 1)
-        self._renderer = None
-        self._closed = False
         self._cache_t = None
         self._cache = None
 
@@ -476,18 +454,9 @@ class RasterMeshRenderer:
             prim = pyrender.Primitive(positions=corners, color_0=colours, texcoord_0=texcoords, material=material,
                                       mode=GL.GL_TRIANGLES)
             scene.add(pyrender.Mesh([prim]))
-        camera = pyrender.IntrinsicsCamera(fx=s * self.fx, fy=s * self.fy, cx=s * (self.cx + 0.5),
-                                           cy=s * (self.cy + 0.5), znear=ZNEAR_M, zfar=ZFAR_M)
-        self._camera_node = scene.add(camera, pose=np.eye(4))
-        self._scene = scene
-        renderer = pyrender.OffscreenRenderer(s * self.width, s * self.height)
-        try:
-            renderer._renderer.delete()
-            renderer._renderer = _grey_renderer_class(pyrender, GL, self.multisample)(s * self.width, s * self.height)
-        except Exception:
-            _delete_offscreen(renderer)
-            raise
-        self._renderer = renderer
+        self._add_camera(pyrender, scene)
+        self._renderer = _offscreen(pyrender, _grey_renderer_class(pyrender, GL, self.multisample), s * self.width,
+                                    s * self.height)
 
     def _check_open(self):
         if self._closed:
@@ -498,10 +467,7 @@ class RasterMeshRenderer:
         t_s = _finite(t_s, "t_s")
         self._check_open()
         if self._cache_t != t_s:
-            if self._renderer is None:
-                self._build_gl()
-            self._scene.set_pose(self._camera_node, opencv_to_gl_pose(self.trajectory.pose(t_s)))
-            grey, _ = self._renderer.render(self._scene, flags=self._flags)
+            grey = self._draw(t_s)
             if self.supersample == 1:
                 image = grey * (1.0 / 255.0)
             else:  # the s x s box mean (INTER_AREA at an integer factor), float32: exact to 1e-7
@@ -589,21 +555,5 @@ class RasterMeshRenderer:
         with the meshes' bounding boxes)."""
         return image_speed_bound(self, t0_s, t1_s, self._lo, self._hi)
 
-    def close(self) -> None:
-        """Free the OpenGL context (idempotent); the renderer cannot render afterwards."""
-        self._closed = True
+    def _drop_caches(self) -> None:
         self._cache_t = self._cache = None
-        if self._renderer is not None:
-            renderer, self._renderer = self._renderer, None
-            _delete_offscreen(renderer)
-
-    @property
-    def closed(self) -> bool:
-        return self._closed
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-        return False

@@ -41,12 +41,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ._gl import ZFAR_M, ZNEAR_M, _delete_offscreen, _import_pyrender, _single_sample_renderer_class, opencv_to_gl_pose
+from ._gl import ZNEAR_M, _import_pyrender, _offscreen, _PinholeRenderer, _single_sample_renderer_class
 from ._motion_field import image_speed_bound, motion_field
-from ._scanline import _accumulate_pieces, _prefix_rows
+from ._scanline import _piece_jumps, _prefix_rows
 from ._visibility import _cast_rays_kernel, _left_border_kernel, _point_depth_kernel, _visible_pieces_kernel
 from .boxes import FACE_ORDER, Box3D, box_edges, box_faces
-from .trajectory import CameraTrajectory, KeyframeTrajectory, _finite, _Trajectory, rotation_from_rpy
+from .trajectory import CameraTrajectory, KeyframeTrajectory, _finite, rotation_from_rpy
 
 __all__ = ["Box3D", "CameraTrajectory", "KeyframeTrajectory", "MeshRenderer", "FACE_ORDER", "rotation_from_rpy"]
 
@@ -89,7 +89,7 @@ def _mark_segment(mask: np.ndarray, u0: float, v0: float, u1: float, v1: float) 
     mask[rows, cols] = True
 
 
-class MeshRenderer:
+class MeshRenderer(_PinholeRenderer):
     """Render intensity, depth, motion field and edges of a box scene for a moving camera.
 
     Parameters
@@ -143,23 +143,8 @@ class MeshRenderer:
 
     def __init__(self, width, height, fx, fy, cx, cy, boxes, trajectory, background=0.5,
                  supersample=1):
-        for name, value in (("width", width), ("height", height), ("supersample", supersample)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-            if value <= 0:
-                raise ValueError(f"{name} must be > 0, got {value}")
-        if supersample % 2 == 0:
-            raise ValueError(f"supersample must be odd (a sample at the pixel centre), got {supersample}")
-        fx, fy = _finite(fx, "fx"), _finite(fy, "fy")
-        if fx <= 0 or fy <= 0:
-            raise ValueError(f"fx and fy must be > 0, got fx={fx}, fy={fy}")
-        cx, cy = _finite(cx, "cx"), _finite(cy, "cy")
-        background = _finite(background, "background")
-        if not 0.0 <= background <= 1.0:
-            raise ValueError(f"background must lie in [0, 1], got {background}")
-        if not isinstance(trajectory, _Trajectory):
-            raise TypeError(f"trajectory must be a CameraTrajectory or KeyframeTrajectory, got "
-                            f"{type(trajectory).__name__}")
+        self._set_camera(width, height, fx, fy, cx, cy, background, trajectory, supersample, odd_supersample=True)
+        background = self.background
         if isinstance(boxes, Box3D) or not isinstance(boxes, Sequence):
             raise TypeError("boxes must be a sequence of Box3D")
         for k, box in enumerate(boxes):
@@ -167,13 +152,7 @@ class MeshRenderer:
                 raise TypeError(f"boxes[{k}] must be a Box3D, got {type(box).__name__}")
         if 6 * len(boxes) + 1 >= 2**24:
             raise ValueError(f"too many boxes ({len(boxes)}): face identifiers need 24 bits")
-
-        self.width, self.height = int(width), int(height)
-        self.fx, self.fy, self.cx, self.cy = fx, fy, cx, cy
-        self.background = background
-        self.supersample = int(supersample)
         self.boxes = tuple(boxes)
-        self.trajectory = trajectory
 
         # Face table; index 0 is the background (no plane, intensity = background).
         normals, offsets, lut, quads = [np.full(3, np.nan)], [np.nan], [background], []
@@ -194,19 +173,13 @@ class MeshRenderer:
         self._lo, self._hi = centres - half, centres + half
         self._box_edges = box_edges(centres, half)
 
-        # Normalised image coordinates of the pixel centres (x = X/Z, y = Y/Z).
-        self._x = ((np.arange(self.width, dtype=np.float64) - cx) / fx)[None, :].repeat(self.height, 0)
-        self._y = ((np.arange(self.height, dtype=np.float64) - cy) / fy)[:, None].repeat(self.width, 1)
-
         self._cache_t = None
         self._cache_ids = None
         self._center_t = None
         self._center_cache = None
         self._pieces_t = None
         self._pieces = None
-        self._quads = quads
-        self._renderer = None  # OpenGL: created by the first raster render
-        self._closed = False
+        self._quads = quads  # OpenGL: the renderer is created by the first raster render
 
     # -- OpenGL ---------------------------------------------------------------------------
     def _build_gl(self):
@@ -215,7 +188,7 @@ class MeshRenderer:
         import trimesh
 
         s = self.supersample
-        self._flat = pyrender.RenderFlags.FLAT
+        self._flags = pyrender.RenderFlags.FLAT
         scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 1.0], ambient_light=[0.0, 0.0, 0.0])
         for face_id, corners in enumerate(quads, start=1):
             # The identifier is the face colour: 8 bits per channel, exact in FLAT mode.
@@ -225,23 +198,9 @@ class MeshRenderer:
             )
             mesh = trimesh.Trimesh(vertices=corners, faces=[[0, 1, 2], [0, 2, 3]], process=False)
             scene.add(pyrender.Mesh.from_trimesh(mesh, material=material, smooth=False))
-        camera = pyrender.IntrinsicsCamera(
-            fx=s * self.fx, fy=s * self.fy,
-            cx=s * (self.cx + 0.5), cy=s * (self.cy + 0.5),
-            znear=ZNEAR_M, zfar=ZFAR_M,
-        )
-        self._camera_node = scene.add(camera, pose=np.eye(4))
-        self._scene = scene
-        renderer = pyrender.OffscreenRenderer(s * self.width, s * self.height)
-        try:
-            renderer._renderer.delete()
-            renderer._renderer = _single_sample_renderer_class(pyrender, GL)(
-                s * self.width, s * self.height
-            )
-        except Exception:
-            _delete_offscreen(renderer)
-            raise
-        self._renderer = renderer
+        self._add_camera(pyrender, scene)
+        self._renderer = _offscreen(pyrender, _single_sample_renderer_class(pyrender, GL), s * self.width,
+                                    s * self.height)
 
     def _check_open(self) -> None:
         if self._closed:
@@ -252,10 +211,7 @@ class MeshRenderer:
         t_s = _finite(t_s, "t_s")
         self._check_open()
         if self._cache_t != t_s:
-            if self._renderer is None:
-                self._build_gl()
-            self._scene.set_pose(self._camera_node, opencv_to_gl_pose(self.trajectory.pose(t_s)))
-            color, _ = self._renderer.render(self._scene, flags=self._flat)
+            color = self._draw(t_s)
             if len(self._lut) <= 256:  # up to 42 boxes: the red channel holds the identifier
                 ids = np.ascontiguousarray(color[..., 0])
             else:
@@ -497,19 +453,7 @@ class MeshRenderer:
         """
         height, width = self.height, self.width
         p, q, left, right = self._pieces_at(t_s, True)
-        values = self._lut
-        acc = np.zeros((height, width + 1))
-        u0, v0, u1, v1 = p[:, 0], p[:, 1], q[:, 0], q[:, 1]
-        sloped = v0 != v1  # horizontal pieces are crossed by no scanline
-        # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
-        up = v1 < v0
-        jump = np.where(up, values[left] - values[right], values[right] - values[left])
-        # each piece from its upper end (smaller v) to its lower end
-        su0, sv0 = np.where(up, u1, u0)[sloped], np.where(up, v1, v0)[sloped]
-        su1, sv1 = np.where(up, u0, u1)[sloped], np.where(up, v0, v1)[sloped]
-        _accumulate_pieces(acc, width, height, np.ascontiguousarray(su0), np.ascontiguousarray(sv0),
-                           np.ascontiguousarray(su1), np.ascontiguousarray(sv1),
-                           np.ascontiguousarray(jump[sloped], dtype=np.float64))
+        acc = _piece_jumps(p, q, left, right, self._lut, width, height)
         out = np.empty((height, width))
         _prefix_rows(acc, self._left_border(t_s, p, q), width, out)  # clipped to [0, 1]
         return out
@@ -542,22 +486,6 @@ class MeshRenderer:
         """
         return image_speed_bound(self, t0_s, t1_s, self._lo, self._hi)
 
-    def close(self) -> None:
-        """Free the OpenGL context, if one was made (idempotent); the renderer cannot render afterwards."""
-        self._closed = True
+    def _drop_caches(self) -> None:
         self._cache_t = self._cache_ids = self._pieces_t = self._pieces = None
         self._center_t = self._center_cache = None
-        if self._renderer is not None:
-            renderer, self._renderer = self._renderer, None
-            _delete_offscreen(renderer)
-
-    @property
-    def closed(self) -> bool:
-        return self._closed
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-        return False

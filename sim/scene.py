@@ -460,12 +460,21 @@ def load_scene(path) -> Scene:
         Unreadable file, invalid TOML or UTF-8, or any invalid key (named).
     """
     path = Path(path)
-    try:
-        text = path.read_bytes()
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read scene file: {exc.strerror or exc}") from None
-    try:
-        data = tomllib.loads(text.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    _, data = _read_toml(path, "scene file")
     return parse_scene(data, source=str(path))
+
+
+def _read_toml(path: Path, what: str, error: type[SceneError] = SceneError) -> tuple[str, dict]:
+    """Text and parsed table of the TOML file ``path`` (scene, dataset and sweep specs alike).
+
+    Raises ``error`` naming ``path``: ``cannot read <what>`` (unreadable) or ``not valid TOML``
+    (invalid TOML or UTF-8).
+    """
+    try:
+        text = path.read_bytes().decode("utf-8")
+        data = tomllib.loads(text)
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: not valid TOML: {exc}") from None
+    return text, data

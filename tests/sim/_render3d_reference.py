@@ -3,14 +3,16 @@
 Every projected box edge is sampled every 1/8 px; at each sample the faces 1e-8 px either side
 are found by ray casting; runs of one (left, right) pair are pieces, their ends refined by 24
 bisection passes; pieces on one image line are merged in Python (``_merge_collinear``).
-Kept verbatim (but for names) as the reference of :mod:`evedge.sim._visibility`.
+Kept verbatim (but for names) as the reference of :mod:`evedge.sim._visibility`; the scanline
+accumulation of the pieces' jumps (:func:`evedge.sim._scanline._piece_jumps`, not what this file
+checks) is the production one; the prefix sums and the left border stay the old Python ones.
 """
 
 import math
 
 import numpy as np
 
-from evedge.sim._scanline import _accumulate_pieces
+from evedge.sim._scanline import _piece_jumps
 from evedge.sim.render3d import MeshRenderer, _cast_rays
 
 _ZNEAR_M = 0.05
@@ -179,28 +181,10 @@ class ReferenceRenderer(MeshRenderer):
         return np.clip(self._exact_intensity(t_s), 0.0, 1.0)
 
     def _exact_intensity(self, t_s: float) -> np.ndarray:
-        """Exact box-filtered (area-averaged) intensity, by scanline accumulation of jumps.
-
-        Along a row, the image is the value at its left border plus the jumps across the
-        visible discontinuities crossed so far; integrating over the pixel square gives each
-        piece's exact contribution in closed form (as font rasterisers accumulate coverage).
-        """
-        height, width = self.height, self.width
+        """The left border's value plus the numpy prefix sum of each row's jumps (unclipped)."""
         p, q, left, right = self._pieces_at(t_s, True)
-        values = self._lut
-        acc = np.zeros((height, width + 1))
-        u0, v0, u1, v1 = p[:, 0], p[:, 1], q[:, 0], q[:, 1]
-        sloped = v0 != v1  # horizontal pieces are crossed by no scanline
-        # jump met when moving along +u; the left side (normal (-dv, du)) is ahead if dv < 0
-        up = v1 < v0
-        jump = np.where(up, values[left] - values[right], values[right] - values[left])
-        # each piece from its upper end (smaller v) to its lower end
-        su0, sv0 = np.where(up, u1, u0)[sloped], np.where(up, v1, v0)[sloped]
-        su1, sv1 = np.where(up, u0, u1)[sloped], np.where(up, v0, v1)[sloped]
-        _accumulate_pieces(acc, width, height, np.ascontiguousarray(su0), np.ascontiguousarray(sv0),
-                           np.ascontiguousarray(su1), np.ascontiguousarray(sv1),
-                           np.ascontiguousarray(jump[sloped], dtype=np.float64))
-        return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :width]
+        acc = _piece_jumps(p, q, left, right, self._lut, self.width, self.height)
+        return self._left_border(t_s, p, q)[:, None] + np.cumsum(acc, axis=1)[:, :self.width]
 
     def _left_border(self, t_s: float, p: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Mean intensity along the left image border ``u = -0.5`` over each row (H,)."""

@@ -1,6 +1,8 @@
 """Event generation: analytic ramp, kernels against pure-Python references, noise, refractory, sampling."""
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,30 +10,8 @@ import pytest
 from evedge.sim import ConverterParams, EventConverter, parse_scene, simulate
 from evedge.sim._events import _convert, _noise
 
-
-class RampRenderer:
-    """One pixel whose log intensity is the exact ramp L(t) = L0 + k t (so I = exp(L) - eps)."""
-
-    width = 1
-    height = 1
-
-    def __init__(self, l0, k, eps):
-        self.l0, self.k, self.eps = l0, k, eps
-
-    def intensity(self, t_s):
-        return np.full((1, 1), math.exp(self.l0 + self.k * t_s) - self.eps)
-
-    def flow(self, t_s):
-        return np.zeros((2, 1, 1))
-
-    def edges(self, t_s):
-        return np.zeros((1, 1), bool)
-
-    def max_speed_px_s(self, t0_s, t1_s):
-        return 0.0
-
-    def close(self):
-        pass
+sys.path.insert(0, str(Path(__file__).parent))
+from _renderers import RampRenderer  # noqa: E402  (one pixel, exact log ramp)
 
 
 @pytest.mark.parametrize("k", [7.3, -4.1])
@@ -239,12 +219,6 @@ def test_renderer_with_wrong_shape_is_refused():
 def test_jitter_is_a_non_negative_half_normal_latency():
     class WideRamp(RampRenderer):
         width = 200
-
-        def intensity(self, t_s):
-            return np.full((1, 200), math.exp(self.l0 + self.k * t_s) - self.eps)
-
-        def flow(self, t_s):
-            return np.zeros((2, 1, 200))
 
     eps, c, k = 1e-3, 0.2, 8.0
     params = ConverterParams(contrast_pos=c, contrast_neg=c, log_eps=eps, jitter_us=100.0, min_rate_hz=200.0)

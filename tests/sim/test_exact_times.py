@@ -8,11 +8,16 @@ solved in closed form. Nothing of the simulator's kernels is used here.
 """
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from evedge.sim import EventConverter, parse_scene, simulate
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _renderers import StillRenderer  # noqa: E402
 
 EPS = 1e-3
 C = 0.2
@@ -123,23 +128,8 @@ def test_exact_times_match_closed_form(make, speed):
 def test_exact_refuses_a_renderer_without_pixel_intensity():
     from evedge.sim import ConverterParams
 
-    class Flat:
+    class Flat(StillRenderer):
         width = height = 2
-
-        def intensity(self, t_s):
-            return np.full((2, 2), 0.5)
-
-        def flow(self, t_s):
-            return np.zeros((2, 2, 2))
-
-        def edges(self, t_s):
-            return np.zeros((2, 2), bool)
-
-        def max_speed_px_s(self, t0_s, t1_s):
-            return 0.0
-
-        def close(self):
-            pass
 
     with pytest.raises(ValueError, match="crossing_times='exact' needs a renderer with pixel_intensity"):
         EventConverter(Flat(), ConverterParams(crossing_times="exact"), seed=0, duration_s=0.1)

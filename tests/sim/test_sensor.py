@@ -1,6 +1,8 @@
 """Sensor effects (v2e's pixel model) against analytic expectations: low-pass, leak, shot noise, resetting noise."""
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,29 +13,8 @@ from evedge.sim.planar import StripeLayer, StripesRenderer
 
 EPS = 1e-3
 
-
-class RampRenderer:
-    """One pixel with log intensity L(t) = L0 + k t."""
-
-    width = height = 1
-
-    def __init__(self, l0, k):
-        self.l0, self.k = l0, k
-
-    def intensity(self, t_s):
-        return np.full((1, 1), math.exp(self.l0 + self.k * t_s) - EPS)
-
-    def flow(self, t_s):
-        return np.zeros((2, 1, 1))
-
-    def edges(self, t_s):
-        return np.zeros((1, 1), bool)
-
-    def max_speed_px_s(self, t0_s, t1_s):
-        return 0.0
-
-    def close(self):
-        pass
+sys.path.insert(0, str(Path(__file__).parent))
+from _renderers import RampRenderer  # noqa: E402  (one pixel, exact log ramp)
 
 
 def _static(values, duration_s, rate_hz=100.0):
@@ -109,7 +90,7 @@ def test_resetting_noise_and_refractory(refractory_us):
     k, c = 10.0, 0.2
     p = ConverterParams(contrast_pos=c, contrast_neg=c, noise_rate_hz=30.0, noise_resets=True,
                         refractory_us=refractory_us)
-    conv = EventConverter(RampRenderer(math.log(0.05), k), p, seed=2, duration_s=2.0)
+    conv = EventConverter(RampRenderer(math.log(0.05), k, EPS), p, seed=2, duration_s=2.0)
     ev, tr = conv.process(2.0)
     t = tr["t_ns"] * 1e-9
     noise = ~tr["is_signal"]
@@ -120,7 +101,7 @@ def test_resetting_noise_and_refractory(refractory_us):
     assert gaps.min() >= refractory_us * 1e-6 - 1e-9
     # the same without resets: signal events on the fixed 20 ms grid, noise independent of them
     q = ConverterParams(contrast_pos=c, contrast_neg=c, noise_rate_hz=30.0, refractory_us=refractory_us)
-    ev2, tr2 = EventConverter(RampRenderer(math.log(0.05), k), q, seed=2, duration_s=2.0).process(2.0)
+    ev2, tr2 = EventConverter(RampRenderer(math.log(0.05), k, EPS), q, seed=2, duration_s=2.0).process(2.0)
     sig = tr2["t_ns"][tr2["is_signal"]] * 1e-9
     np.testing.assert_allclose(np.diff(sig), c / k, rtol=0, atol=1e-6)
 
