@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from evedge._fuzz.corpus import aedat4_bytes
 from evedge.events import Frames, Recording, SensorSize, make_events
 
 REALDATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "realdata"
@@ -55,38 +55,9 @@ def small_recording():
     return _small_recording
 
 
-def _flatbuffer_ioheader(description: str) -> bytes:
-    # IOHeader table {compression (absent: None), file_data_position (absent: -1), description}
-    text = description.encode()
-    body = struct.pack("<I", 20) + b"IOHE" + struct.pack("<HHHHH", 10, 8, 0, 0, 4) + b"\0\0"
-    body += struct.pack("<i", 12) + struct.pack("<I", 4) + struct.pack("<I", len(text)) + text + b"\0"
-    body += b"\0" * (-len(body) % 4)
-    return struct.pack("<I", len(body)) + body
-
-
-def _flatbuffer_event_packet(stream_id: int, x, y, t, on) -> bytes:
-    # size-prefixed EventPacket {elements: [Event{t: i64, x: i16, y: i16, on: bool}]}, 8-aligned structs
-    n = len(t)
-    body = bytearray(struct.pack("<I", 0) + struct.pack("<I", 16) + b"EVTS" + struct.pack("<HHH", 6, 8, 4) + b"\0\0")
-    body += struct.pack("<i", 8) + struct.pack("<I", 4) + struct.pack("<I", n)
-    rec = np.zeros(n, dtype=[("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("on", "u1"), ("pad", "V3")])
-    rec["t"], rec["x"], rec["y"], rec["on"] = t, x, y, on
-    body += rec.tobytes()
-    body[0:4] = struct.pack("<I", len(body) - 4)
-    return struct.pack("<II", stream_id, len(body)) + bytes(body)
-
-
 def _write_aedat4(path: Path, width: int, height: int, packets: list[tuple]) -> Path:
     """Write an uncompressed AEDAT 4 file with one event stream (id 0) and the given packets."""
-    description = (
-        '<dv version="2.0"><node name="outInfo"><node name="0">'
-        '<attr key="typeIdentifier" type="string">EVTS</attr><node name="info">'
-        f'<attr key="sizeX" type="int">{width}</attr><attr key="sizeY" type="int">{height}</attr>'
-        "</node></node></node></dv>"
-    )
-    data = b"#!AER-DAT4.0\r\n" + _flatbuffer_ioheader(description)
-    data += b"".join(_flatbuffer_event_packet(0, *cols) for cols in packets)
-    path.write_bytes(data)
+    path.write_bytes(aedat4_bytes(width, height, packets))
     return path
 
 
