@@ -91,3 +91,19 @@ def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
     return write_bytes_atomic(path, buf.getvalue())
+
+
+def relative_figures(out_dir: str | os.PathLike, paths: Iterable[str | os.PathLike]) -> list[str]:
+    """The figure paths relative to ``out_dir`` (POSIX), as the results store them.
+
+    A run is built in a temporary folder and swapped in as a whole (:mod:`evedge._output`),
+    so nothing in the results may point at where it was written: a reader joins
+    these with the folder the results are in.
+
+    Examples
+    --------
+    >>> relative_figures("/tmp/x", ["/tmp/x/a.png"])
+    ['a.png']
+    """
+    base = Path(out_dir)
+    return [Path(p).relative_to(base).as_posix() for p in paths]

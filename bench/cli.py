@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
-
-import os
 
 import click
 
@@ -28,7 +28,7 @@ def _out_dir(ctx, param, value):
 
     try:
         if check_output(value, overwrite=ctx.meta.get("evedge_overwrite", False)):
-            click.echo(f"replacing the earlier output in {value} (file by file)", err=True)
+            click.echo(f"replacing the earlier output in {value} (swapped in as a whole at the end)", err=True)
     except OutputExistsError as err:
         raise click.BadParameter(str(err), ctx=ctx, param=param) from None
     try:
@@ -85,6 +85,24 @@ _DISPLAY = click.option("--display", "displays", type=click.Choice(["predecessor
                              "clear the pixel behind each event (primary); lifetime_only: nothing cleared.")
 
 
+@contextmanager
+def _staged(out: Path):
+    """Build the run in a temporary folder beside ``out``; swap it in as a whole at the end.
+
+    A run killed at any point leaves the earlier ``out`` intact (plus at most a
+    temporary folder the next run removes); see :mod:`evedge._output`. The
+    results store figure paths relative to the folder, so none points at the
+    temporary one.
+    """
+    from evedge._output import OutputExistsError, staged_folder
+
+    try:
+        with staged_folder(out) as stage:
+            yield stage
+    except OutputExistsError as err:
+        raise click.ClickException(str(err)) from None
+
+
 class _Group(click.Group):
     """A failed write (a full disk, a vanished folder) is one error line, not a traceback."""
 
@@ -118,7 +136,7 @@ def _experiment(*, seed: bool = True):
     return decorate
 
 
-def _summary(results: dict, t0: float) -> None:
+def _summary(results: dict, t0: float, out: Path) -> None:
     # one line per paper claim (evedge.bench.claims); every detailed check is in the report
     for c in results.get("claims", []):
         counts = f" ({c['n_holds']} of {c['n_checks']} checks hold)" if c["n_checks"] else ""
@@ -128,7 +146,7 @@ def _summary(results: dict, t0: float) -> None:
     for name, err in results.get("errors", {}).items():
         click.echo(f"  experiment {name} FAILED: {err}", err=True)
     click.echo(f"wall time {time.perf_counter() - t0:.1f} s")
-    click.echo(f"report: {Path(results['report']).resolve()}")
+    click.echo(f"report: {(out / 'report.html').resolve()}")
 
 
 @_experiment()
@@ -148,10 +166,11 @@ def paper(out: Path, quick: bool, no_progress: bool, seed: int, only: tuple, sce
     t0 = time.perf_counter()
     cmd = " ".join(["evedge bench paper"] + (["--quick"] if quick else []) + [f"--only {o}" for o in only]
                    + ([f"--scene {scene}"] if scene else []) + [f"--method {m}" for m in methods_extra])
-    results = run_paper(out, quick=quick, progress=not no_progress, seed=seed, command=cmd,
-                        experiments=tuple(only) or EXPERIMENTS, scene=scene, methods_extra=methods_extra,
-                        data_dir=data_dir)
-    _summary(results, t0)
+    with _staged(out) as stage:
+        results = run_paper(stage, quick=quick, progress=not no_progress, seed=seed, command=cmd,
+                            experiments=tuple(only) or EXPERIMENTS, scene=scene, methods_extra=methods_extra,
+                            data_dir=data_dir)
+    _summary(results, t0, out)
     if results.get("errors"):
         sys.exit(1)
 
@@ -166,8 +185,9 @@ def ransac(out: Path, quick: bool, no_progress: bool, seed: int, repetitions: in
     if repetitions is not None or seed:
         reps = repetitions if repetitions is not None else (100 if quick else 1000)
         params = RansacStudyParams(repetitions=reps, seed=seed)
-    res = run_ransac_study(out, params=params, quick=quick, progress=not no_progress)
-    click.echo("\n".join(res["figures"]))
+    with _staged(out) as stage:
+        res = run_ransac_study(stage, params=params, quick=quick, progress=not no_progress)
+    click.echo("\n".join(str(out / f) for f in res["figures"]))
 
 
 @_experiment()
@@ -178,8 +198,9 @@ def lifetime(out: Path, quick: bool, no_progress: bool, seed: int, data_dir, sce
     """Lifetime histograms and images on real and simulated stripes (paper figs. 4-5)."""
     from .exp_lifetime import run_lifetime
 
-    res = run_lifetime(out, quick=quick, progress=not no_progress, seed=seed, data_dir=data_dir, scene=scene)
-    click.echo("\n".join(res["figures"]))
+    with _staged(out) as stage:
+        res = run_lifetime(stage, quick=quick, progress=not no_progress, seed=seed, data_dir=data_dir, scene=scene)
+    click.echo("\n".join(str(out / f) for f in res["figures"]))
 
 
 @_experiment()
@@ -197,13 +218,14 @@ def similarity(out: Path, quick: bool, no_progress: bool, seed: int, scene: str,
     from .methods import DISPLAYS
     from .results import ResultsTable, cdm_rows
 
-    res = run_similarity(out, scene=scene, quick=quick, progress=not no_progress, seed=seed,
-                         displays=tuple(displays) or DISPLAYS, methods_extra=methods_extra)
-    table = ResultsTable()
-    for name, r in res["scenes"].items():
-        table.extend(cdm_rows("similarity", name, r["cdm"]), experiment="similarity")
-    paths = table.save(out / "results")
-    click.echo("\n".join(res["figures"] + [str(p) for p in paths]))
+    with _staged(out) as stage:
+        res = run_similarity(stage, scene=scene, quick=quick, progress=not no_progress, seed=seed,
+                             displays=tuple(displays) or DISPLAYS, methods_extra=methods_extra)
+        table = ResultsTable()
+        for name, r in res["scenes"].items():
+            table.extend(cdm_rows("similarity", name, r["cdm"]), experiment="similarity")
+        paths = table.save(stage / "results")
+    click.echo("\n".join(str(out / f) for f in res["figures"] + [p.name for p in paths]))
 
 
 @_experiment(seed=False)
@@ -212,8 +234,9 @@ def qualitative(out: Path, quick: bool, no_progress: bool, data_dir) -> None:
     """Grey, Canny, proposed, Mueggler, 1 ms and 30 ms side by side (paper figs. 1, 8), on slider_depth."""
     from .exp_qualitative import run_qualitative
 
-    res = run_qualitative(out, quick=quick, progress=not no_progress, data_dir=data_dir)
-    click.echo("\n".join(res["figures"]))
+    with _staged(out) as stage:
+        res = run_qualitative(stage, quick=quick, progress=not no_progress, data_dir=data_dir)
+    click.echo("\n".join(str(out / f) for f in res["figures"]))
 
 
 @_experiment(seed=False)
@@ -233,11 +256,12 @@ def real(out: Path, quick: bool, no_progress: bool, path: Path | None, displays:
     from .exp_real import NoFramesError
 
     try:
-        res = run_real(out, path=path, quick=quick, progress=not no_progress,
-                       displays=tuple(displays) or DISPLAYS, methods_extra=methods_extra, data_dir=data_dir)
+        with _staged(out) as stage:
+            res = run_real(stage, path=path, quick=quick, progress=not no_progress,
+                           displays=tuple(displays) or DISPLAYS, methods_extra=methods_extra, data_dir=data_dir)
     except (EventFileError, NoFramesError) as err:  # the recording, not the code, is at fault
         raise click.ClickException(str(err)) from None
-    click.echo("\n".join(res["figures"]))
+    click.echo("\n".join(str(out / f) for f in res["figures"]))
 
 
 @click.command()
@@ -253,10 +277,11 @@ def demo(out: Path, no_progress: bool, seed: int) -> None:
     t0 = time.perf_counter()
     click.echo(f"evedge demo: running the paper's experiments (reduced sizes) into {out}/")
     try:
-        results = run_paper(out, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
+        with _staged(out) as stage:
+            results = run_paper(stage, quick=True, progress=not no_progress, seed=seed, command="evedge demo")
     except OSError as err:
         raise click.ClickException(f"cannot write the output: {err}") from None
-    _summary(results, t0)
+    _summary(results, t0, out)
     if results.get("errors"):
         sys.exit(1)
 

@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import save_figure, write_csv_atomic, write_json_atomic
+from ._files import relative_figures, save_figure, write_csv_atomic, write_json_atomic
 from ._plot import pyplot
 from .exp_real import default_realdata_dir
 from .exp_similarity import simulate_scene
@@ -315,7 +315,7 @@ def run_lifetime(out_dir, *, quick: bool = False, progress: bool = True, seed: i
     flat = {name: dict(res["methods"], **({"truth": res["truth"]} if "truth" in res else {}))
             for name, res in results.items()}
     out = {"lifetime": flat, "datasets": {name: res["info"] for name, res in results.items()},
-           "skipped": skipped, "figures": [str(p) for p in figures]}
+           "skipped": skipped, "figures": relative_figures(out_dir, figures)}
     write_json_atomic(out_dir / "lifetime.json", out)
     return out
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import save_figure, write_json_atomic
+from ._files import relative_figures, save_figure, write_json_atomic
 from ._plot import pyplot
 from .canny import CANNY_SETTINGS, canny_edges
 from .methods import DISPLAY_LABELS, PRIMARY_DISPLAY, edge_maps, method_key
@@ -93,7 +93,7 @@ def run_qualitative(out_dir, *, rows: list[dict] | None = None, quick: bool = Fa
     fig.suptitle(f"Lifetime methods shown with the {DISPLAY_LABELS[PRIMARY_DISPLAY]} (the primary display "
                  "policy, as in the authors' code); black: edge", fontsize=9)
     path = save_figure(fig, out_dir / "qualitative.png", dpi=130)
-    out = {"rows": [row["title"] for row in rows], "edge_pixels": counts, "figures": [str(path)],
+    out = {"rows": [row["title"] for row in rows], "edge_pixels": counts, "figures": relative_figures(out_dir, [path]),
            "display": PRIMARY_DISPLAY}
     write_json_atomic(out_dir / "qualitative.json", out)
     return out

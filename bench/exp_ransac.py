@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from ._files import save_figure, write_csv_atomic, write_json_atomic
+from ._files import relative_figures, save_figure, write_csv_atomic, write_json_atomic
 from ._plot import pyplot
 from .stats import f_measure
 
@@ -318,7 +318,7 @@ def run_ransac_study(out_dir, *, params: RansacStudyParams | None = None, quick:
                      ["noise_kind", "method", "use_intra", "delta_px", "noise_px", "f_measure", "f_measure_all_fired",
                       "lifetime_rel_error_mean", "lifetime_rel_error_median", "ok_rate", "repetitions"], rows)
     figures = _plot(out_dir, results, params)
-    out = {"params": asdict(params), "fmeasure": results, "figures": [str(p) for p in figures],
+    out = {"params": asdict(params), "fmeasure": results, "figures": relative_figures(out_dir, figures),
            "truth_tolerance_sensitivity": sensitivity,
            "definitions": {
                "noise_px": "Gaussian timestamp noise std in units of the true lifetime (pixels of edge travel)",

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import save_figure, write_csv_atomic, write_json_atomic
+from ._files import relative_figures, save_figure, write_csv_atomic, write_json_atomic
 from ._plot import pyplot
 from .canny import CANNY_SETTINGS
 from .frame_eval import canny_references, cdm_table, summarise
@@ -121,7 +121,7 @@ def run_real(out_dir, *, path=None, quick: bool = False, progress: bool = True, 
     res = {"frame_t_us": times, "frame_index": idx, "canny_settings": [s.as_dict() for s in settings],
            "cdm": table, "summary": summary, "count_n": count_n, "source": str(path),
            "displays": display_record(displays)}
-    out = {"recordings": {name: res}, "figures": [str(fig_path)]}
+    out = {"recordings": {name: res}, "figures": relative_figures(out_dir, [fig_path])}
     write_json_atomic(out_dir / f"real_{name}.json", out)
     if keep_maps:
         out["_maps"] = {"grey": grey, "times": times, "canny": refs[next(iter(refs))], "maps": maps}

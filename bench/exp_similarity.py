@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import save_figure, write_csv_atomic, write_json_atomic
+from ._files import relative_figures, save_figure, write_csv_atomic, write_json_atomic
 from ._plot import pyplot
 from .canny import CANNY_SETTINGS
 from .exp_real import count_for
@@ -240,7 +240,7 @@ def run_similarity(out_dir, *, recording=None, scene: str = "shapes_translation"
            "count_n": count_n, "n_events": int(rec.events.size), "displays": display_record(displays),
            "diagnostics": _diagnostics(rec, maps, refs, runs, sections, frame_section) if diagnostics else {},
            "metadata": {k: v for k, v in rec.metadata.items() if isinstance(v, (str, int, float, bool))}}
-    out = {"scenes": {scene: res}, "figures": [str(p) for p in figures]}
+    out = {"scenes": {scene: res}, "figures": relative_figures(out_dir, figures)}
     write_json_atomic(out_dir / f"similarity_{scene}.json", out)
     if keep_maps:
         out["_maps"] = {"grey": grey, "times": times, "canny": refs[next(iter(refs))], "maps": maps,

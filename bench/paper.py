@@ -157,7 +157,7 @@ def _ransac(ctx: PaperRun) -> list[dict]:
     ctx.results["fmeasure"] = res["fmeasure"]
     ctx.results["truth_tolerance_sensitivity"] = res["truth_tolerance_sensitivity"]
     ctx.results["fmeasure_definitions"] = res["definitions"]
-    ctx.figures["ransac"] = res["figures"]
+    ctx.figures["ransac"] = [f"ransac/{f}" for f in res["figures"]]
     return ransac_rows(res["fmeasure"], res["truth_tolerance_sensitivity"])
 
 
@@ -178,7 +178,7 @@ def _lifetime(ctx: PaperRun) -> list[dict]:
     ctx.results["lifetime_datasets"] = res["datasets"]
     for ds, why in res["skipped"].items():
         ctx.results["skipped"][f"lifetime/{ds}"] = why
-    ctx.figures["lifetime"] = res["figures"]
+    ctx.figures["lifetime"] = [f"lifetime/{f}" for f in res["figures"]]
     return lifetime_rows(res["lifetime"], res["datasets"])
 
 
@@ -204,7 +204,7 @@ def _similarity(ctx: PaperRun) -> list[dict]:
         ctx.params["similarity"]["count_n"] = r["count_n"]
         rows += cdm_rows("similarity", name, r["cdm"])
         rows += diagnostic_rows(name, r["diagnostics"])
-    ctx.figures["similarity"] = res["figures"]
+    ctx.figures["similarity"] = [f"similarity/{f}" for f in res["figures"]]
     return rows
 
 
@@ -226,7 +226,7 @@ def _real(ctx: PaperRun) -> list[dict]:
             "frame_t_us": r["frame_t_us"], "frame_index": r["frame_index"], "count_n": r["count_n"],
             "source": r["source"]}
         rows += real_rows(rec, ctx.results["real"][rec])
-    ctx.figures["real"] = res["figures"]
+    ctx.figures["real"] = [f"real/{f}" for f in res["figures"]]
     return rows
 
 
@@ -248,7 +248,7 @@ def _qualitative(ctx: PaperRun) -> list[dict]:
         rows += rows_from_maps("slider_depth", real, [len(real["times"]) // 2])
     res = run_qualitative(ctx.out_dir / "qualitative", rows=rows or None, progress=ctx.progress,
                           data_dir=ctx.options.get("data_dir"))
-    ctx.figures["qualitative"] = res["figures"]
+    ctx.figures["qualitative"] = [f"qualitative/{f}" for f in res["figures"]]
     ctx.results["qualitative"] = {k: res[k] for k in ("rows", "edge_pixels")}
     return []
 

@@ -270,7 +270,8 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
         As written to ``results.json`` (keys ``verdicts``, ``fmeasure``, ``lifetime``,
         ``cdm``, ``real``, ``params``, ``run``).
     figures : dict
-        Experiment -> list of PNG paths (inlined).
+        Experiment -> list of PNG paths (inlined); relative ones are relative to
+        the folder of ``path`` (as ``results.json`` stores them).
     notes : list of str
         Caveats and definitions shown at the end.
     board : dict, optional
@@ -283,6 +284,8 @@ def write_report(path, results: dict, *, figures: dict[str, list], notes: list[s
     from .report_render import environment
 
     board = board or {"columns": [], "rows": [], "winners": {}}
+    base = Path(path).parent
+    figures = {k: [base / p for p in v] for k, v in figures.items()}
     sections = []
     if results.get("fmeasure"):
         sections.append(("1. RANSAC inlier decision and lifetime error (paper fig. 7)",

@@ -104,16 +104,37 @@ def test_kill_9_leaves_the_old_or_the_new_output_and_a_rerun_succeeds(tmp_path, 
     assert not [p.name for p in out.parent.iterdir() if p.name.endswith(".tmp")]  # killed runs' leftovers removed
 
 
-def test_kill_9_during_bench_leaves_whole_files_and_a_rerun_succeeds(tmp_path):
+def _folder_digest(out: Path) -> dict[str, str]:
+    """Every file under ``out`` (relative path) and its sha256: a bench output as a reader sees it."""
+    return {p.relative_to(out).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+def test_kill_9_during_bench_leaves_the_old_or_the_new_run_and_a_rerun_succeeds(tmp_path):
     out = tmp_path / "b"
-    args = ("bench", "ransac", "-o", out, "--quick", "--repetitions", "2", "--no-progress", "--overwrite")
-    _kill_at(float(np.random.default_rng(14).uniform(2.0, 5.0)), *args)
-    for path in out.iterdir() if out.exists() else ():
-        if path.suffix == ".json":
-            json.loads(path.read_text())  # never half a file
-    code, text, _ = _run(*args)
-    assert code == 0, text
-    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []  # no temp file left by the rerun
+    args = lambda o, seed: ("bench", "ransac", "-o", o, "--quick", "--repetitions", "2", "--seed", seed,  # noqa: E731
+                            "--no-progress", "--overwrite")
+    runs = {}
+    for seed in (0, 1):  # the two complete runs, each built from scratch (same seed = same bytes)
+        code, text, full_s = _run(*args(tmp_path / f"ref{seed}", seed))
+        assert code == 0, text
+        runs[seed] = _folder_digest(tmp_path / f"ref{seed}")
+    assert runs[0].keys() == runs[1].keys() and all(runs[0][k] != runs[1][k] for k in runs[0])  # a mix would show
+    code, text, _ = _run(*args(out, 0))
+    assert code == 0 and _folder_digest(out) == runs[0], text
+    current = 0
+    for delay in np.random.default_rng(14).uniform(0.3, 1.1, 3) * full_s:  # start-up, computing, writing, swap
+        target = 1 - current
+        _kill_at(delay, *args(out, target))
+        seen = _folder_digest(out)
+        assert seen in (runs[current], runs[target]), \
+            f"killed after {delay:.2f} s: {out} is neither the earlier run nor a complete new one"
+        current = current if seen == runs[current] else target
+    code, text, _ = _run(*args(out, 1 - current))
+    assert code == 0 and _folder_digest(out) == runs[1 - current], text
+    figures = json.loads((out / "ransac_study.json").read_text())["figures"]
+    assert figures and all(not Path(f).is_absolute() and (out / f).is_file() for f in figures)  # nothing points away
+    assert not [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")]  # killed runs' leftovers removed
 
 
 @pytest.fixture

@@ -51,6 +51,18 @@ def test_results_json_has_the_keys(tiny_run):
     assert data["run"]["versions"]["numpy"]
 
 
+def test_results_name_figures_relative_to_the_output_folder(tiny_run):
+    # the CLI builds the run in a temporary folder and swaps it in: no stored path may point there
+    out, _ = tiny_run
+    data = json.loads((out / "results.json").read_text())
+    figures = [f for v in data["figures"].values() for f in v]
+    assert len(figures) >= 8
+    assert all(not Path(f).is_absolute() and (out / f).is_file() for f in figures)
+    assert str(out) not in (out / "results.json").read_text()
+    for name in ("ransac/ransac_study.json", "lifetime/lifetime.json"):
+        assert all((out / name).parent.joinpath(f).is_file() for f in json.loads((out / name).read_text())["figures"])
+
+
 def test_both_display_policies_in_results_and_report(tiny_run):
     out, res = tiny_run
     data = json.loads((out / "results.json").read_text())
