@@ -17,6 +17,17 @@ def _overwrite(ctx, param, value):
     return value
 
 
+#: File in every bench output folder: ``--overwrite`` replaces a folder only when it holds it (or, for
+#: outputs written before the marker existed, ``report.html`` and ``results.json``), so a mistyped
+#: ``-o`` never wipes a folder of other files.
+BENCH_MARKER = ".evedge-bench"
+
+
+def _is_bench_output(folder: Path) -> bool:
+    return (folder / BENCH_MARKER).is_file() or ((folder / "report.html").is_file()
+                                                 and (folder / "results.json").is_file())
+
+
 def _out_dir(ctx, param, value):
     """Create the output directory up front: an unusable path is a usage error, not a traceback after the run.
 
@@ -26,6 +37,12 @@ def _out_dir(ctx, param, value):
         return None
     from evedge._output import OutputExistsError, check_output
 
+    if ctx.meta.get("evedge_overwrite", False) and value.is_dir() and not value.is_symlink() \
+            and any(value.iterdir()) and not _is_bench_output(value):
+        raise click.BadParameter(
+            f"{value} holds files but is not an earlier evedge bench output (no {BENCH_MARKER}, no report.html + "
+            "results.json): --overwrite replaces only an earlier bench output; choose another folder",
+            ctx=ctx, param=param)
     try:
         if check_output(value, overwrite=ctx.meta.get("evedge_overwrite", False)):
             click.echo(f"replacing the earlier output in {value} (swapped in as a whole at the end)", err=True)
@@ -98,6 +115,7 @@ def _staged(out: Path):
 
     try:
         with staged_folder(out) as stage:
+            (stage / BENCH_MARKER).write_text("an evedge bench output: `evedge bench ... --overwrite` may replace this folder\n")
             yield stage
     except OutputExistsError as err:
         raise click.ClickException(str(err)) from None

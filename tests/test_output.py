@@ -65,3 +65,31 @@ def test_only_the_temps_of_dead_writers_are_removed(tmp_path):
     mine.write_text("mine")
     remove_stale_temps(target)
     assert not stale.exists() and live.exists() and mine.exists()
+
+
+def _bench_ransac(out, *extra):
+    return subprocess.run([sys.executable, "-m", "evedge.cli", "bench", "ransac", "--quick", "--repetitions", "2",
+                           "--no-progress", "-o", str(out), *extra], capture_output=True, text=True, timeout=300)
+
+
+def test_bench_overwrite_never_replaces_a_folder_of_other_files(tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("months of work")
+    proc = _bench_ransac(out, "--overwrite")
+    assert proc.returncode == 2, proc.stderr
+    assert "is not an earlier evedge bench output" in proc.stderr and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["thesis.tex"]
+    assert (out / "thesis.tex").read_text() == "months of work"
+
+
+def test_bench_overwrite_replaces_its_own_earlier_output(tmp_path):
+    legacy = tmp_path / "legacy"  # written before the marker existed: report.html + results.json
+    legacy.mkdir()
+    (legacy / "report.html").write_text("<html></html>")
+    (legacy / "results.json").write_text("{}")
+    proc = _bench_ransac(legacy, "--overwrite")
+    assert proc.returncode == 0, proc.stderr
+    assert (legacy / ".evedge-bench").is_file() and not (legacy / "report.html").exists()
+    again = _bench_ransac(legacy, "--overwrite")  # now it carries the marker
+    assert again.returncode == 0, again.stderr
