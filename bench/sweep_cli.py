@@ -6,6 +6,23 @@ from pathlib import Path
 
 import click
 
+#: What an earlier sweep output holds: a rerun completes it (dataset verified, grades reused, results rewritten).
+_SWEEP_OUTPUT = ("dataset", "grades")
+
+
+def _check_out(out: Path) -> None:
+    """Complete an earlier sweep in ``out`` (announced); refuse a non-empty folder that is not one, or a link."""
+    if out.is_symlink():
+        raise click.BadParameter(f"{out} is a symbolic link; give the folder it points to", param_hint="'-o'")
+    if out.exists() and not out.is_dir():
+        raise click.BadParameter(f"{out} is an existing file, not an output folder", param_hint="'-o'")
+    if out.is_dir() and any(out.iterdir()):
+        if not all((out / name).is_dir() for name in _SWEEP_OUTPUT):
+            raise click.BadParameter(f"{out} holds files but is not an earlier sweep output (no dataset/ and "
+                                     "grades/): choose another folder", param_hint="'-o'")
+        click.echo(f"completing the earlier sweep in {out}: its dataset is verified, grades of unchanged "
+                   "sequences reused, results and report rewritten", err=True)
+
 
 @click.command("sweep")
 @click.argument("spec", type=click.Path(path_type=Path))  # a file or a shipped spec's name
@@ -28,6 +45,7 @@ def sweep(spec: Path, out: Path, workers, scheduler, retries: int, no_progress: 
 
     from .sweep import load_sweep, run_sweep
 
+    _check_out(out)
     try:
         parsed = load_sweep(dataset_path(spec))
         res = run_sweep(parsed, out, workers=workers, scheduler=scheduler, retries=retries,

@@ -2,6 +2,8 @@
 
 import csv
 import math
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -179,3 +181,14 @@ def test_sweep_command_reports_a_bad_spec_without_traceback(tmp_path):
     assert "key 'sweep.methods[1]': unknown method 'nope'" in res.output
     assert res.exception is None or isinstance(res.exception, SystemExit)
     assert not (tmp_path / "o").exists()
+
+
+def test_sweep_refuses_a_folder_that_is_not_an_earlier_sweep(tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    proc = subprocess.run([sys.executable, "-m", "evedge.cli", "bench", "sweep", "small", "-o", str(out),
+                           "--no-progress"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "is not an earlier sweep output" in proc.stderr and "Traceback" not in proc.stderr
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
