@@ -287,34 +287,44 @@ def load_mesh_file(path) -> list[SceneMesh]:
         raise ValueError(f"{path}: cannot read mesh: {type(exc).__name__}: {exc}") from None
     out = []
     for name in loaded.graph.nodes_geometry:
-        transform, geometry_name = loaded.graph[name]
-        tm = loaded.geometry[geometry_name]
-        if not isinstance(tm, trimesh.Trimesh) or len(tm.faces) == 0:
-            continue
-        tm = tm.copy()
-        tm.apply_transform(transform)
-        vertices, faces = np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)
-        visual = tm.visual
-        corner, uv, texture = None, None, None
-        if visual.kind == "texture" and getattr(visual, "uv", None) is not None:
-            material = visual.material
-            image = getattr(material, "image", None)
-            if image is None:
-                image = getattr(material, "baseColorTexture", None)
-            factor = getattr(material, "baseColorFactor", None)
-            if image is not None:
-                texture = _luminance(np.asarray(image.convert("RGB")))
-                uv = np.asarray(visual.uv, dtype=np.float64)
-            if factor is not None:
-                corner = np.full(faces.shape, float(_luminance(np.asarray(factor, dtype=np.float64)[None, :3])[0]))
-        elif visual.kind == "vertex":
-            corner = _luminance(np.asarray(visual.vertex_colors))[faces]
-        elif visual.kind == "face":
-            corner = np.repeat(_luminance(np.asarray(visual.face_colors))[:, None], 3, axis=1)
-        out.append(SceneMesh(vertices, faces, corner, uv, texture))
+        try:  # a damaged file can load and still hold indices past its arrays (trimesh checks them lazily)
+            mesh = _scene_mesh_of(loaded, name, trimesh)
+        except Exception as exc:
+            raise ValueError(f"{path}: cannot read mesh {name!r}: {type(exc).__name__}: {exc}") from None
+        if mesh is not None:
+            out.append(mesh)
     if not out:
         raise ValueError(f"{path}: no triangle mesh in the file")
     return out
+
+
+def _scene_mesh_of(loaded, name, trimesh) -> SceneMesh | None:
+    """The :class:`SceneMesh` of node ``name`` of a loaded trimesh scene (None: no triangles)."""
+    transform, geometry_name = loaded.graph[name]
+    tm = loaded.geometry[geometry_name]
+    if not isinstance(tm, trimesh.Trimesh) or len(tm.faces) == 0:
+        return None
+    tm = tm.copy()
+    tm.apply_transform(transform)
+    vertices, faces = np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)
+    visual = tm.visual
+    corner, uv, texture = None, None, None
+    if visual.kind == "texture" and getattr(visual, "uv", None) is not None:
+        material = visual.material
+        image = getattr(material, "image", None)
+        if image is None:
+            image = getattr(material, "baseColorTexture", None)
+        factor = getattr(material, "baseColorFactor", None)
+        if image is not None:
+            texture = _luminance(np.asarray(image.convert("RGB")))
+            uv = np.asarray(visual.uv, dtype=np.float64)
+        if factor is not None:
+            corner = np.full(faces.shape, float(_luminance(np.asarray(factor, dtype=np.float64)[None, :3])[0]))
+    elif visual.kind == "vertex":
+        corner = _luminance(np.asarray(visual.vertex_colors))[faces]
+    elif visual.kind == "face":
+        corner = np.repeat(_luminance(np.asarray(visual.face_colors))[:, None], 3, axis=1)
+    return SceneMesh(vertices, faces, corner, uv, texture)
 
 
 def scene_meshes(boxes, meshes, source: str = "<scene>") -> list[SceneMesh]:

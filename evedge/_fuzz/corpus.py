@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import mutate as mu
-from .targets import NATIVE_FORMATS
+from .targets import MESH_FORMATS, NATIVE_FORMATS
 
 REPO = Path(__file__).resolve().parents[2]
 #: The real recordings beside the repository (not part of it); optional.
@@ -208,6 +208,17 @@ class Seeds:
             return [write_detection(self.folder / "seed_det.h5", det).read_bytes()]
 
         return self._once("detection", make)
+
+    def meshes(self, fmt: str) -> list[bytes]:
+        """A textured-free box and a vertex-coloured sphere, exported by trimesh as ``fmt``."""
+        def make():
+            import trimesh
+
+            box = trimesh.creation.box(extents=(1.0, 2.0, 0.5))
+            ball = trimesh.creation.icosphere(subdivisions=1, radius=0.7)
+            ball.visual.vertex_colors = np.tile(np.array([200, 120, 40, 255], np.uint8), (len(ball.vertices), 1))
+            return [m.export(file_type=fmt) for m in (box, ball)]
+        return [d.encode() if isinstance(d, str) else bytes(d) for d in self._once("mesh_" + fmt, make)]
 
     def dataset_specs(self) -> list[bytes]:
         return self._once("dataset_specs",
@@ -652,6 +663,13 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
         suffix = {"evt3": ".raw", "evt2": ".raw", "dat": ".dat", "es": ".es", "aedat2": ".aedat",
                   "aedat3": ".aedat", "detection": ".h5"}[target]
         return Case(case_id, target, what, lambda d: _write(d, "rec" + suffix, data), root)
+    if target.startswith("mesh_") and target[5:] in MESH_FORMATS:
+        fmt = target[5:]
+        files = seeds.meshes(fmt)
+        base = files[int(rng.integers(0, len(files)))]
+        mutators = mu.TEXT_MUTATORS if fmt == "obj" or (fmt == "ply" and crafted) else mu.BYTE_MUTATORS
+        data, what = mu.mutate(base, rng, mutators, 2) if mutators is mu.BYTE_MUTATORS else mu.mutate(base, rng, mutators)
+        return Case(case_id, target, what, lambda d: _write(d, "mesh." + fmt, data), root)
     if target == "dataset_spec":
         texts = seeds.dataset_specs()
         text = texts[int(rng.integers(0, len(texts)))]

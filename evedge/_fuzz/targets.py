@@ -141,6 +141,8 @@ def selftest(path: str):
 _EVENT_FILE_ERROR = "evedge.io:EventFileError"
 #: Registered formats fuzzed through :func:`evedge.io.read_events` (seeds in :mod:`.corpus`).
 NATIVE_FORMATS = ("evt3", "evt2", "dat", "es", "aedat2", "aedat3")
+#: Mesh file formats of 3-D scenes (seeds exported by trimesh in :mod:`.corpus`).
+MESH_FORMATS = ("obj", "ply", "glb")
 
 #: name -> Target; the harness fuzzes each with its own corpus (:mod:`evedge._fuzz.corpus`).
 TARGETS = {
@@ -157,6 +159,8 @@ TARGETS = {
     **{name: Target("evedge.io:read_events", _EVENT_FILE_ERROR, (("format", name),), check_recording)
        for name in NATIVE_FORMATS},
     "detection": Target("evedge.io.detection:read_detection", _EVENT_FILE_ERROR),
+    # user meshes of 3-D scenes (OBJ, PLY, GLB through trimesh): a ValueError naming the file
+    **{f"mesh_{fmt}": Target("evedge.sim.mesh:load_mesh_file", "builtins:ValueError") for fmt in MESH_FORMATS},
 }
 
 #: Targets outside the campaign: the harness's own checks.

@@ -348,3 +348,13 @@ def test_triangle_ray_casting_matches_the_slow_reference():
     want = ref_first_hit_depth(centre[0], np.column_stack([x, y, np.ones(300)]), tris, 0.05)
     assert np.isfinite(want).sum() > 100 and np.isinf(want).sum() > 10
     np.testing.assert_allclose(out, want, rtol=1e-9)
+
+
+def test_a_damaged_glb_is_a_value_error_naming_the_file(tmp_path):
+    # fuzz case mesh_glb/1/1 (bit flip + an index of 2**30): trimesh loads it, the index fails later
+    from evedge._fuzz.corpus import Seeds, cases
+
+    case = list(cases("mesh_glb", 2, 1, tmp_path / "cases", Seeds(tmp_path / "seeds")))[1]
+    path = case.materialise()
+    with pytest.raises(ValueError, match=str(path)):
+        load_mesh_file(path)
