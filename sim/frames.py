@@ -263,7 +263,11 @@ def open_video(path, *, timestamps=None, rate_hz=None) -> FrameSource:
         container = []
         while cap.grab():  # one pass without decoding: the frame count and the container's times
             container.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
-        ok, first = cv2.VideoCapture(str(path)).read()
+    finally:
+        cap.release()
+    cap = cv2.VideoCapture(str(path))  # a second pass decodes the first frame (its size)
+    try:
+        ok, first = cap.read()
     finally:
         cap.release()
     if not container or not ok:
