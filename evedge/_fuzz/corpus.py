@@ -667,8 +667,10 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
         fmt = target[5:]
         files = seeds.meshes(fmt)
         base = files[int(rng.integers(0, len(files)))]
-        mutators = mu.TEXT_MUTATORS if fmt == "obj" or (fmt == "ply" and crafted) else mu.BYTE_MUTATORS
-        data, what = mu.mutate(base, rng, mutators, 2) if mutators is mu.BYTE_MUTATORS else mu.mutate(base, rng, mutators)
+        if fmt == "obj" or (fmt == "ply" and crafted):  # OBJ is text; a PLY header is text too
+            data, what = mu.mutate(base, rng, mu.TEXT_MUTATORS)
+        else:
+            data, what = mu.mutate(base, rng, mu.BYTE_MUTATORS, 2)
         return Case(case_id, target, what, lambda d: _write(d, "mesh." + fmt, data), root)
     if target == "dataset_spec":
         texts = seeds.dataset_specs()
