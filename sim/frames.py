@@ -102,7 +102,32 @@ def _image_size(data: bytes, source: str) -> tuple[int, int]:
         raise FramesError(f"{source}: not a readable image ({type(err).__name__}: {err})") from None
     if kind == "JPEG" and not data.rstrip(b"\0\r\n\t ")[-2:] == b"\xff\xd9":
         raise FramesError(f"{source}: the JPEG ends before its end-of-image marker (cut or damaged)")
+    if kind == "PNG":
+        _check_png_chunks(data, source)
     return width, height
+
+
+def _check_png_chunks(data: bytes, source: str) -> None:
+    """Every chunk inside the file and matching its CRC, up to IEND.
+
+    OpenCV's PNG reader spends seconds per GB that a damaged chunk length
+    declares past the end of the file (a flipped byte: a hang); libpng
+    would ignore a damaged ancillary chunk.
+    """
+    import zlib
+
+    pos = 8
+    while pos + 12 <= len(data):
+        length = int.from_bytes(data[pos:pos + 4], "big")
+        kind = data[pos + 4:pos + 8]
+        if pos + 12 + length > len(data):
+            raise FramesError(f"{source}: PNG chunk {kind!r} at byte {pos} claims {length} bytes past the end of the file")
+        if zlib.crc32(data[pos + 4:pos + 8 + length]) != int.from_bytes(data[pos + 8 + length:pos + 12 + length], "big"):
+            raise FramesError(f"{source}: PNG chunk {kind!r} at byte {pos} fails its CRC: the file is corrupt")
+        if kind == b"IEND":
+            return
+        pos += 12 + length
+    raise FramesError(f"{source}: the PNG has no IEND chunk (cut short)")
 
 
 def _grey(img: np.ndarray, source: str) -> np.ndarray:

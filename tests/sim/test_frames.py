@@ -364,3 +364,17 @@ def test_video_decoder_errors_are_named(tmp_path):
     (tmp_path / "cut.avi").write_bytes(data[:300])
     with pytest.raises(FramesError, match=r"cut.avi: (OpenCV cannot open it as a video|no decodable frame)"):
         open_video(tmp_path / "cut.avi")
+
+
+def test_a_png_chunk_length_past_the_end_is_refused_before_opencv(tmp_path):
+    folder = _folder(tmp_path)
+    data = bytearray((folder / "1.png").read_bytes())
+    data[33] ^= 0xA7  # the first chunk after IHDR now claims ~2.8 GB: OpenCV spends seconds on it
+    (folder / "1.png").write_bytes(bytes(data))
+    with pytest.raises(FramesError, match=r"1.png: PNG chunk b'.{4}' at byte 33 claims \d+ bytes past the end"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    data[33] ^= 0xA7
+    data[45] ^= 0x01  # a byte of the (IDAT) chunk's body: PIL reads the header only
+    (folder / "1.png").write_bytes(bytes(data))
+    with pytest.raises(FramesError, match=r"1.png: PNG chunk .* at byte 33 fails its CRC"):
+        simulate_frames(open_frames_folder(folder), progress=False)
