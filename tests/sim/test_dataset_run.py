@@ -391,3 +391,20 @@ def test_run_tasks_bounds_the_tasks_in_flight(client):
     assert all(r == i and e is None for i, r, e in got)
     with pytest.raises(ValueError, match="max_in_flight must be an integer >= 1"):
         list(run_tasks(client, abs, [1], max_in_flight=0))
+
+
+def test_a_link_in_the_dataset_folder_is_refused_and_nothing_behind_it_is_touched(client, reference, tmp_path):
+    spec, _, _ = reference
+    out = tmp_path / "ds"
+    generate_dataset(parse_dataset(dict(TINY, dataset={"count": 1, "seed": 11, "name": "tiny"})), out,
+                     client=client, progress=False)
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / ".seq_00000.h5.1.tmp").write_bytes(b"not yours")  # what a stale-temp sweep would delete
+    for p in (out / "sequences").iterdir():
+        p.unlink()
+    (out / "sequences").rmdir()
+    (out / "sequences").symlink_to(victim, target_is_directory=True)  # resuming would write through it
+    with pytest.raises(DatasetError, match=r"sequences is a symbolic link: .* is not written into"):
+        generate_dataset(spec, out, client=client, progress=False)
+    assert sorted(os.listdir(victim)) == [".seq_00000.h5.1.tmp"]
