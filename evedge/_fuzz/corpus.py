@@ -63,11 +63,12 @@ def small_recording(n: int = 2000, seed: int = 0, *, frames: bool = True, truth:
     tr = fr = ed = None
     if truth:
         tr = np.empty(n, dtype=[("vx_px_s", "f8"), ("vy_px_s", "f8"), ("nx", "f8"), ("ny", "f8"),
-                                ("lifetime_us", "f8"), ("is_signal", "?")])
+                                ("lifetime_us", "f8"), ("is_signal", "?"), ("t_ns", "i8")])
         for name in ("vx_px_s", "vy_px_s", "nx", "ny"):
             tr[name] = rng.normal(size=n)
         tr["lifetime_us"] = rng.uniform(1e3, 3e4, n)
         tr["is_signal"] = rng.random(n) > 0.1
+        tr["t_ns"] = t * 1000 + rng.integers(-500, 500, n)  # the instant in ns, t its rounding to us
     if frames:
         yy, xx = np.mgrid[0:180, 0:240]
         fr = Frames(np.array([0, 200_000, 400_000]),
