@@ -224,12 +224,21 @@ class FrameSource:
         What to call the source in messages and metadata.
     """
 
-    def __init__(self, times_s, width, height, name, reader):
+    def __init__(self, times_s, width, height, name, reader, block=None):
         self.times_s = _check_times(np.asarray(times_s, dtype=np.float64), name)
         self.width = int(width)
         self.height = int(height)
         self.name = str(name)
         self._reader = reader  # reader(k) -> float64 (H, W) frame k, called with k = 0, 1, 2, ...
+        self._block = block  # block(k0, k1) -> float64 (k1 - k0, H, W) frames as they are, without a copy
+
+    def block(self, k0: int, k1: int):
+        """Frames ``k0 .. k1 - 1`` as one float64 ``(k1 - k0, H, W)`` array without a copy, or None.
+
+        Only in-memory float64 frames have one (:func:`frames_from_arrays`);
+        the others are read frame by frame with :meth:`frame`.
+        """
+        return None if self._block is None else self._block(k0, k1)
 
     def __len__(self) -> int:
         return int(self.times_s.shape[0])
@@ -449,8 +458,11 @@ def frames_from_arrays(frames, times_s, name: str = "<frames>") -> FrameSource:
         raise FramesError(f"{name}: {frames.shape[0]} frames but times_s has shape {times_s.shape}")
     if not np.all(np.isfinite(times_s)):
         raise FramesError(f"{name}: times_s must be finite")
+    block = None
+    if frames.dtype == np.float64 and frames.flags.c_contiguous:
+        block = lambda k0, k1: frames[k0:k1]  # noqa: E731  (the frames as _grey returns them: no copy)
     return FrameSource(times_s, frames.shape[2], frames.shape[1], name,
-                       lambda k: _grey(frames[k], f"{name}: frame {k}"))
+                       lambda k: _grey(frames[k], f"{name}: frame {k}"), block)
 
 
 class FramesRenderer:
@@ -500,6 +512,7 @@ class FramesRenderer:
         self._k = -1  # frame interval [k, k + 1] held
         self._pair = None
         self._next = None  # (time, k, j) of the last next_sample_s answer
+        self._buf = None  # images of the last samples() call (reused)
 
     # sample times: frame k at _t[k], sub-sample j of interval k at _t[k] + j / upsample * (_t[k+1] - _t[k])
     def _sample_time(self, k, j):
@@ -599,6 +612,46 @@ class FramesRenderer:
         if self.upsample == 1 and not self.log_input:
             return lg  # linear frames as they are
         return np.exp(lg) - self.eps
+
+    def samples(self, t_s: float, until_s: float, max_n: int):
+        """The next samples after ``t_s`` in one array: ``(times_s, images)``, as :meth:`next_sample_s` and
+        :meth:`intensity` give them one by one.
+
+        At most ``max_n`` samples; the last one is the first at or after
+        ``until_s`` (or the last frame). ``images`` is ``(n, H, W)`` float64:
+        a view of in-memory float64 frames when there is no upsampling,
+        resizing or log input, else a buffer reused by the next call.
+        """
+        last = len(self._t) - 1
+        t = self.next_sample_s(t_s)
+        k, j = self._next[1:]
+        times, kj = [t], [(k, j)]
+        while len(times) < max_n and t < until_s and k < last:
+            # the successor of sample (k, j): the smallest sample time after t, as next_sample_s(t)
+            while k < last:
+                j += 1
+                if j == self.upsample:
+                    k, j = k + 1, 0
+                tj = self._sample_time(k, j)
+                if tj > t:
+                    break
+            else:
+                break
+            t = tj
+            times.append(t)
+            kj.append((k, j))
+        n = len(times)
+        times = np.array(times)
+        if self.upsample == 1 and not self.log_input and self.resize is None:
+            view = self.source.block(kj[0][0], kj[0][0] + n)
+            if view is not None:
+                return times, view
+        if self._buf is None or self._buf.shape[0] < n:
+            self._buf = np.empty((max(n, int(max_n)), self.height, self.width))
+        for r, (tk, (k, j)) in enumerate(zip(times, kj)):
+            self._next = (float(tk), k, j)
+            self._buf[r] = self.intensity(float(tk))
+        return times, self._buf[:n]
 
     def flow(self, t_s: float):
         return None

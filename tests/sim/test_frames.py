@@ -49,14 +49,17 @@ def esim_reference(frames, times_s, c_pos, c_neg, refractory_s=0.0, eps=EPS):
     return out
 
 
-def _rendered_frames(n=60, rate_hz=1000.0):
+def _rendered_frames(n=60, rate_hz=1000.0, size=(26, 14)):
     d = {
         "scene": {"kind": "shapes", "duration_s": 1.0, "background": 0.8},
-        "sensor": {"width": 26, "height": 14},
+        "sensor": {"width": size[0], "height": size[1]},
         "motion": {"velocity_px_s": [180.0, -60.0]},
         "shapes": [{"kind": "star", "center_px": [9, 7], "radius_px": 6, "intensity": 0.15},
                    {"kind": "circle", "center_px": [19, 8], "radius_px": 3.5, "intensity": 0.35}],
     }
+    if size[0] > 60:  # and a shape far down the image (in the second tile of pixels of _frames_batch)
+        d["shapes"].append({"kind": "circle", "center_px": [size[0] - 12, size[1] - 9], "radius_px": 6,
+                            "intensity": 0.3})
     scene = parse_scene(d, "f.toml")
     t = np.arange(n) / rate_hz
     return np.stack([render_frame(scene, float(tk)) for tk in t]), t
@@ -378,3 +381,64 @@ def test_a_png_chunk_length_past_the_end_is_refused_before_opencv(tmp_path):
     (folder / "1.png").write_bytes(bytes(data))
     with pytest.raises(FramesError, match=r"1.png: PNG chunk .* at byte 33 fails its CRC"):
         simulate_frames(open_frames_folder(folder), progress=False)
+
+
+@pytest.mark.parametrize("case", ["plain", "pixel_model", "log_upsample", "flow_upsample", "log_input", "uint8",
+                                  "resize"])
+def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
+    """The fused batch kernel (one call per batch of frames) against the converter's frame-by-frame path."""
+    # more events per batch than the first buffers hold (they grow)
+    frames, t = _rendered_frames(70, rate_hz=2000.0, size=(72, 48))
+    params = ConverterParams(contrast_pos=0.15, contrast_neg=0.17)
+    kw = {}
+    if case == "pixel_model":
+        params = ConverterParams(contrast_sigma=0.05, noise_rate_hz=40.0, refractory_us=150.0, jitter_us=3.0)
+    elif case == "log_upsample":
+        kw = dict(upsample=3, interpolation="log")
+    elif case == "flow_upsample":
+        kw = dict(upsample=2, interpolation="flow")
+    elif case == "log_input":
+        frames, kw = np.log(frames + EPS), dict(log_input=True)
+    elif case == "uint8":
+        frames = np.rint(frames * 255).astype(np.uint8)
+    elif case == "resize":
+        kw = dict(resize=(80, 36))
+    runs = {}
+    for mode in ("batched", "per_frame"):
+        if mode == "per_frame":
+            monkeypatch.setattr(FramesRenderer, "samples", None)  # the converter then steps frame by frame
+        for chunk_s in (0.05, 0.0031):
+            runs[mode, chunk_s] = simulate_frames(frames_from_arrays(frames, t), params, seed=3, progress=False,
+                                                  chunk_s=chunk_s, **kw)
+    ref = runs["per_frame", 0.05]
+    assert ref.events.shape[0] > 1200  # one batch at chunk_s = 0.05: more than the first buffers (1024)
+    for key, rec in runs.items():
+        assert rec.events.tobytes() == ref.events.tobytes(), key
+        assert rec.truth.tobytes() == ref.truth.tobytes(), key
+        assert rec.metadata["n_samples"] == ref.metadata["n_samples"], key
+
+
+def test_batches_stop_at_the_chunk_and_the_batch_size():
+    """``samples`` follows next_sample_s: up to the first sample at or after ``until_s``, at most ``max_n``."""
+    frames, t = _rendered_frames(12, rate_hz=100.0)
+    r = FramesRenderer(frames_from_arrays(frames, t), upsample=3)
+    times, images = r.samples(0.0, 0.025, 100)
+    want, tk = [], 0.0
+    while tk < 0.025:
+        tk = r.next_sample_s(tk)
+        want.append(tk)
+    assert times.tolist() == want and images.shape == (len(want), 14, 26)
+    assert np.array_equal(images[-1], r.intensity(want[-1]))
+    times, _ = r.samples(0.0, 1.0, 4)
+    assert times.shape == (4,)
+    times, _ = r.samples(0.1, 1.0, 100)
+    assert times[-1] == t[-1] - t[0]
+
+
+def test_non_finite_frame_inside_a_batch_is_named():
+    frames, t = _rendered_frames(40)
+    frames[17, 3, 4] = np.inf
+    frames[17, 5, 6] = np.nan
+    frames[25, 0, 0] = np.nan
+    with pytest.raises(ValueError, match=r"clip: the sample at t = 0.017 s has 2 non-finite pixel values"):
+        simulate_frames(frames_from_arrays(frames, t, name="clip"), progress=False)
