@@ -65,7 +65,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan, _scan_frame
-from ._exact import _crossing_levels, _hidden_crossing, _root_start, _root_step, _refractory_jitter
+from ._coverage import _HALF_DIAG
+from ._exact import (_crossing_levels, _drop_marked, _extremum_flags, _hidden_crossing, _path_crossing_levels,
+                     _refractory_jitter, _root_start, _root_step)
 from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
@@ -97,6 +99,11 @@ EXACT_TOL_I = 1e-13
 #: instant the level is reached (a time bias of 1e-11 / |dI/dt| s; where the intensity only touches
 #: the level, as on returning to a plateau, sqrt(1e-11 / a) for I = a (t - t*)^2, tens of ns).
 EXACT_SHIFT_I = 1e-11
+#: Geometric steps: a pixel the renderer cannot prove monotone over a step is sub-sampled so that the
+#: image moves at most this far (px) between its sub-samples.
+SUBSTEP_PX = 0.1
+#: ... and a sub-interval beside an extremum that may reach a new level is split this many times more.
+EXTREMUM_SPLIT = 16
 #: ... or after this many steps (a safeguard; about 4 are needed on average, a few dozen at worst).
 _EXACT_MAX_STEPS = 100
 
@@ -314,8 +321,11 @@ class EventConverter:
         # exact crossing times do not need the lambda rule: only the geometric bound on the step
         # "auto": geometric too where the renderer guarantees monotone pixels over a max_step_px step
         # (then no crossing can hide inside a step and the lambda rule buys nothing)
-        self.geometric_steps = mode == "geometric" or (
-            mode == "auto" and self.exact and params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0)))
+        # renderers that name the pixels that may be non-monotone over a step (nonmonotone_pixels: the
+        # shapes) get those pixels sub-sampled, so no crossing hides inside a step anywhere
+        self._subsample = self.exact and callable(getattr(renderer, "nonmonotone_pixels", None))
+        self.geometric_steps = mode == "geometric" or (mode == "auto" and self.exact and (
+            self._subsample or params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0))))
         if self.geometric_steps:
             self.verified = False
         self.reset()
@@ -372,6 +382,10 @@ class EventConverter:
         self.n_samples = 0
         self.n_rejected = 0
         self.n_root_steps = 0
+        self.n_subsampled = 0  # pixel-steps sub-sampled (geometric steps, non-monotone pixels)
+        self.n_extremum_splits = 0  # their sub-intervals sampled more densely around extrema
+        self._nm = self._empty[0]  # this step's non-monotone pixels
+        self._nm_mask = np.zeros(npix, dtype=np.bool_) if self._subsample else None
         self.done = False
 
     # ------------------------------------------------------------------ sampling
@@ -464,6 +478,19 @@ class EventConverter:
             self._i = i1
             self.n_samples += 1
             return
+        if self.geometric_steps and self._subsample:
+            # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz; the
+            # pixels the renderer cannot prove monotone over the step are sub-sampled (_path_crossings)
+            t1 = min(self.t + self._propose(), self.duration_s)
+            i1, spans, n_spans = self._candidate(t1)
+            n_cand, _ = self._scan(self._i, i1, spans, n_spans)
+            disp = float(self.renderer.max_speed_px_s(self.t, t1)) * (t1 - self.t)
+            self._nm = np.ascontiguousarray(self.renderer.nonmonotone_pixels(self.t, t1, _HALF_DIAG + disp + 1e-6),
+                                            dtype=np.int64)
+            self._nm_disp = disp
+            self._advance(t1, i1, n_cand)
+            self._nm = self._empty[0]
+            return
         if self.geometric_steps:
             # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz, halved
             # while the midpoint shows an excursion hiding a crossing
@@ -529,6 +556,13 @@ class EventConverter:
             return
         n = moved = 0
         if self.exact:
+            nm = self._nm
+            if nm.shape[0]:
+                if n_cand:
+                    self._nm_mask[nm] = True
+                    n_cand = _drop_marked(self._cand, n_cand, self._nm_mask)
+                    self._nm_mask[nm] = False
+                self._path_crossings(t0, t1, i0, i1, nm)
             if n_cand:
                 self._raw_crossings(t0, t1, i0, i1, n_cand)
             n_cand = 0  # the linear path below has nothing left to do
@@ -666,6 +700,52 @@ class EventConverter:
         # the sample buffers are reused: keep the two end values of every crossing's pixel
         self._raw.append((pix, level, pol, t0, t1, i0[pix], i1[pix]))
 
+    def _path_crossings(self, t0, t1, i0, i1, nm) -> None:
+        """Exact mode, geometric steps: the crossings of the non-monotone pixels ``nm``, from sub-samples.
+
+        Each pixel is evaluated (``pixel_intensity``) at ``M - 1`` evenly spaced
+        interior times, ``M = ceil(displacement / SUBSTEP_PX)``, so between two
+        of its sub-samples the image moves at most :data:`SUBSTEP_PX`. Around
+        the path's extrema that may reach a new level (:func:`_extremum_flags`:
+        a vertex passing the pixel makes a V whose tip can fall between two
+        sub-samples) the sub-intervals get :data:`EXTREMUM_SPLIT` - 1 more
+        samples each. The crossings are found along the path
+        (:func:`_path_crossing_levels`), each with the sub-interval that
+        brackets it, and solved by :meth:`_refine` as the others.
+        """
+        p = self.params
+        m = max(2, int(math.ceil(self._nm_disp / SUBSTEP_PX)))
+        tt = t0 + (t1 - t0) * (np.arange(1, m) / m)
+        k = nm.shape[0]
+        vals = np.ascontiguousarray(self.renderer.pixel_intensity(np.repeat(nm, m - 1), np.tile(tt, k)),
+                                    dtype=np.float64).reshape(k, m - 1)
+        self.n_subsampled += k
+        flags = np.zeros((k, m), dtype=np.bool_)
+        nf = _extremum_flags(nm, vals, i0, i1, p.log_eps, self.lref, self.cpos, self.cneg, flags)
+        if nf:
+            jq = np.nonzero(flags)  # row-major: the order _path_crossing_levels walks them
+            ends = np.concatenate([[t0], tt, [t1]])
+            ta, tb = ends[jq[1]], ends[jq[1] + 1]
+            frac = np.arange(1, EXTREMUM_SPLIT) / EXTREMUM_SPLIT
+            rt = np.ascontiguousarray(ta[:, None] + (tb - ta)[:, None] * frac[None, :])
+            rvals = np.ascontiguousarray(self.renderer.pixel_intensity(np.repeat(nm[jq[0]], EXTREMUM_SPLIT - 1),
+                                                                       rt.ravel()), dtype=np.float64).reshape(rt.shape)
+            self.n_extremum_splits += nf
+        else:
+            rt = rvals = np.empty((0, EXTREMUM_SPLIT - 1))
+        e = np.empty(0)
+        b = self._empty[2]
+        args = (nm, vals, tt, flags, rvals, rt, i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos,
+                self.cneg)
+        n = _path_crossing_levels(*args, False, self._empty[0], e, b, e, e, e, e)
+        if not n:
+            return
+        out = (np.empty(n, dtype=np.int64), np.empty(n), np.empty(n, dtype=np.bool_), np.empty(n), np.empty(n),
+               np.empty(n), np.empty(n))
+        _path_crossing_levels(*args, True, *out)
+        pix, level, pol, ta, tb, ia, ib = out
+        self._raw.append((pix, level, pol, ta, tb, ia, ib))
+
     def _refine(self) -> None:
         """Exact mode: solve every pending crossing for its instant, then apply refractory and jitter.
 
@@ -686,9 +766,9 @@ class EventConverter:
         self._raw = []
         p = self.params
         pix, level, pol, ia, ib = (np.concatenate([c[k] for c in parts]) for k in (0, 1, 2, 5, 6))
-        sizes = [c[0].shape[0] for c in parts]
-        ta = np.repeat(np.array([c[3] for c in parts]), sizes)
-        tb = np.repeat(np.array([c[4] for c in parts]), sizes)
+        # the bracket of each crossing: the part's step, or per crossing (sub-sampled pixels)
+        ta = np.concatenate([np.broadcast_to(c[3], c[0].shape) for c in parts])
+        tb = np.concatenate([np.broadcast_to(c[4], c[0].shape) for c in parts])
         n = pix.shape[0]
         fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
         active = np.empty(n, dtype=np.bool_)

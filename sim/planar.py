@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
-from ._exact import _shapes_at, _stripes_at, _stripes_truth
+from ._coverage import _HALF_DIAG
+from ._exact import _nonmonotone_pixels, _shapes_at, _shapes_at_translating, _stripes_at, _stripes_truth
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 from .thin_edges import mark_circle, mark_segments, mark_stripes
@@ -197,6 +198,8 @@ class ShapesRenderer(_CoverageRenderer):
         self._br = np.array([np.max(np.hypot(p.vertices_px[:, 0] - a, p.vertices_px[:, 1] - b))
                              for p, a, b in zip(self.polygons, self._bcx, self._bcy)], dtype=np.float64)
         self._motion_array = None  # the motion's parameters for the pixel_intensity kernel
+        self._nm_stamp = None  # scratch of nonmonotone_pixels
+        self._translating = None  # pixel_intensity's geometry when the motion does not rotate
         self._qx = np.empty_like(self._allx)  # scratch: image positions of the points
         self._qy = np.empty_like(self._allx)
 
@@ -238,18 +241,84 @@ class ShapesRenderer(_CoverageRenderer):
             time (the values of :meth:`intensity`, from clipping against the
             pixel square rather than row accumulation: equal to ~1e-15).
         """
-        m = self.motion
-        if self._motion_array is None:
-            self._motion_array = np.array([m.angle_rad, m.angular_velocity_rad_s, m.angular_acceleration_rad_s2,
-                                           m.angle_amplitude_rad, m.frequency_hz, m.chirp_hz_s, *m.velocity_px_s,
-                                           *m.acceleration_px_s2, *m.amplitude_px], dtype=np.float64)
-        cx, cy = m.center_px
+        cx, cy = self.motion.center_px
         out = np.empty(pix.shape[0])
-        _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_array, self.width, cx, cy,
+        m = self.motion
+        if m.angular_velocity_rad_s == 0.0 and m.angular_acceleration_rad_s2 == 0.0 and m.angle_amplitude_rad == 0.0:
+            if self._translating is None:
+                # the constant rotation applied once: the geometry's image positions at s = 0
+                c, sn = math.cos(m.angle_rad), math.sin(m.angle_rad)
+                rot = lambda x, y: (np.ascontiguousarray(cx + c * (x - cx) - sn * (y - cy)),  # noqa: E731
+                                    np.ascontiguousarray(cy + sn * (x - cx) + c * (y - cy)))
+                self._translating = (*rot(self._px, self._py), *rot(self._bcx, self._bcy),
+                                     (self._br + _HALF_DIAG) ** 2, *rot(self._cx, self._cy))
+            bx, by, bcx, bcy, reach2, ccx, ccy = self._translating
+            _shapes_at_translating(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_params(),
+                                   self.width, bx, by, self._pstart, self._pvalue, bcx, bcy, reach2, ccx, ccy,
+                                   self._cr, self._cvalue, self.background, self._may_overlap, out)
+            return out
+        _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_params(), self.width, cx, cy,
                    self._px, self._py, self._pstart,
                    self._pvalue, self._bcx, self._bcy, self._br, self._cx, self._cy, self._cr, self._cvalue,
                    self.background, self._may_overlap, out)
         return out
+
+    def nonmonotone_pixels(self, t0_s: float, t1_s: float, reach_px: float) -> np.ndarray:
+        """Pixels whose intensity may not be monotone in time over ``[t0_s, t1_s]``.
+
+        Every other pixel's intensity is monotone over the step, so its
+        crossings are exactly those its end values show (the converter's
+        geometric steps rely on this, see :mod:`evedge.sim.converter`). The
+        rule (:func:`~evedge.sim._exact._nonmonotone_pixels`): the sign of the
+        boundary's normal speed ``v.n`` on every polygon edge and disk arc
+        that comes within ``reach_px`` of the pixel centre; a pixel reached
+        by pieces of both signs (a vertex moving sideways, the two sides of a
+        thin part, a disk's flank, any edge as the motion turns) is returned.
+
+        Parameters
+        ----------
+        t0_s, t1_s : float
+            The step (s), ``t0_s <= t1_s``.
+        reach_px : float
+            Half the pixel diagonal plus the largest image displacement of
+            any point during the step (px).
+
+        Returns
+        -------
+        numpy.ndarray
+            int64 flat pixel indices, each once (a fresh array).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from evedge.sim.motion import PlanarMotion
+        >>> bar = Polygon(np.array([[3.0, -5.0], [3.3, -5.0], [3.3, 9.0], [3.0, 9.0]]), 0.1)
+        >>> r = ShapesRenderer(8, 3, [bar], PlanarMotion(velocity_px_s=(100.0, 0.0)))
+        >>> sorted(int(p) for p in r.nonmonotone_pixels(0.0, 0.005, 0.71 + 0.5) if p < 8)  # row 0: both sides
+        [3, 4]
+        """
+        npix = self.width * self.height
+        if self._nm_stamp is None:
+            self._nm_stamp = np.full(npix, -1, dtype=np.int64)
+            self._nm_bits = np.zeros(npix, dtype=np.uint8)
+            self._nm_out = np.empty(npix, dtype=np.int64)
+            self._nm_step = 0
+        self._nm_step += 1
+        cx, cy = self.motion.center_px
+        n = _nonmonotone_pixels(self._motion_params(), float(t0_s), float(t1_s), float(reach_px), self.width,
+                                self.height, cx, cy, self._px, self._py, self._pstart, self._porient, self._pvalue,
+                                self._cx, self._cy, self._cr, self._cvalue, self.background, self._nm_stamp,
+                                self._nm_bits, self._nm_step, self._nm_out)
+        return self._nm_out[:n].copy()
+
+    def _motion_params(self) -> np.ndarray:
+        """The motion's parameters as one float64 array (for the kernels)."""
+        if self._motion_array is None:
+            m = self.motion
+            self._motion_array = np.array([m.angle_rad, m.angular_velocity_rad_s, m.angular_acceleration_rad_s2,
+                                           m.angle_amplitude_rad, m.frequency_hz, m.chirp_hz_s, *m.velocity_px_s,
+                                           *m.acceleration_px_s2, *m.amplitude_px], dtype=np.float64)
+        return self._motion_array
 
     def flow(self, t_s: float) -> np.ndarray:
         yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
