@@ -57,7 +57,13 @@ def _stripes_at(pix, t, width, layer_of_row, nx, ny, vx, vy, phase, period, duty
 
 @njit(cache=True)
 def _polygon_pixel_coverage(vx, vy, n, x, y):
-    """Exact area of the polygon ``(vx, vy)[:n]`` inside pixel ``(x, y)`` (its square ``[x-0.5, x+0.5]^2``).
+    """Exact area of the polygon ``(vx, vy)[:n]`` inside pixel ``(x, y)``: :func:`_polygon_pixel_coverage_from`."""
+    return _polygon_pixel_coverage_from(vx, vy, 0, n, x, y)
+
+
+@njit(cache=True)
+def _polygon_pixel_coverage_from(vx, vy, s0, n, x, y):
+    """Exact area of the polygon ``(vx, vy)[s0:s0 + n]`` inside pixel ``(x, y)`` (its square ``[x-0.5, x+0.5]^2``).
 
     The rasteriser's decomposition (:func:`~evedge.sim._coverage._accumulate_edge`)
     for one cell: each edge crossing the pixel's row band adds
@@ -70,8 +76,8 @@ def _polygon_pixel_coverage(vx, vy, n, x, y):
     # pixel-corner coordinates: the pixel spans [c, c + 1] x [r, r + 1]
     c = float(x)
     r = float(y)
-    j = n - 1
-    for i in range(n):
+    j = s0 + n - 1
+    for i in range(s0, s0 + n):
         x0 = vx[j] + 0.5
         y0 = vy[j] + 0.5
         x1 = vx[i] + 0.5
@@ -417,23 +423,6 @@ def _motion_full(m, t):
 
 
 @njit(cache=True)
-def _mark(pix, b, stamp, bits, step_id, out, n_out):
-    """OR ``b`` into the bits of ``pix`` for this step; append ``pix`` to ``out`` when they become 3."""
-    if stamp[pix] != step_id:
-        stamp[pix] = step_id
-        bits[pix] = b
-        if b == 3:
-            out[n_out] = pix
-            n_out += 1
-    elif bits[pix] != 3:
-        bits[pix] |= b
-        if bits[pix] == 3:
-            out[n_out] = pix
-            n_out += 1
-    return n_out
-
-
-@njit(cache=True)
 def _nonmonotone_pixels(motion, t0, t1, reach, width, height, center_x, center_y, qx, qy, starts, orient,
                         values, ccx, ccy, radii, circle_values, background, stamp, bits, step_id, out):
     """Pixels whose intensity may not be monotone in time over ``[t0, t1]`` (written to ``out``; returns how many).
@@ -540,7 +529,17 @@ def _nonmonotone_pixels(motion, t0, t1, reach, width, height, center_x, center_y
                 x0 = max(0, int(math.ceil(lo_x - reach)))
                 x1 = min(width - 1, int(math.floor(hi_x + reach)))
                 for x in range(x0, x1 + 1):
-                    n_out = _mark(y * width + x, bit, stamp, bits, step_id, out, n_out)
+                    pi = y * width + x
+                    if stamp[pi] != step_id:
+                        stamp[pi] = step_id
+                        bits[pi] = bit
+                        if bit == 3:
+                            out[n_out] = pi
+                            n_out += 1
+                    elif bits[pi] != 3 and (bits[pi] | bit) == 3:
+                        bits[pi] = 3
+                        out[n_out] = pi
+                        n_out += 1
     tx = np.empty((3, 2))
     ty = np.empty((3, 2))
     cvx = np.empty(3)
@@ -610,7 +609,17 @@ def _nonmonotone_pixels(motion, t0, t1, reach, width, height, center_x, center_y
                             sign = 0
                     sign = sign if dv > 0.0 else -sign
                     bit = 1 if sign > 0 else (2 if sign < 0 else 3)
-                    n_out = _mark(y * width + x, bit, stamp, bits, step_id, out, n_out)
+                    pi = y * width + x
+                    if stamp[pi] != step_id:
+                        stamp[pi] = step_id
+                        bits[pi] = bit
+                        if bit == 3:
+                            out[n_out] = pi
+                            n_out += 1
+                    elif bits[pi] != 3 and (bits[pi] | bit) == 3:
+                        bits[pi] = 3
+                        out[n_out] = pi
+                        n_out += 1
     return n_out
 
 
@@ -623,16 +632,6 @@ def _drop_marked(cand, n_cand, marked):
             cand[m] = cand[j]
             m += 1
     return m
-
-
-@njit(cache=True)
-def _path_value(j, q, m, i, vals, i0, i1):
-    """Intensity of sub-sampled pixel ``j`` (flat index ``i``) at its sample ``q`` (0: ``i0``, ``m``: ``i1``)."""
-    if q == 0:
-        return i0[i]
-    if q == m:
-        return i1[i]
-    return vals[j, q - 1]
 
 
 @njit(cache=True)
@@ -663,17 +662,22 @@ def _extremum_flags(pix, vals, i0, i1, eps, lref, cpos, cneg, flags):
     """
     m = vals.shape[1] + 1
     n = 0
+    seq = np.empty(m + 1)
     for j in range(pix.shape[0]):
         i = pix[j]
         lr = lref[i]
         cp = cpos[i]
         cn = cneg[i]
+        seq[0] = i0[i]
+        for q in range(m - 1):
+            seq[q + 1] = vals[j, q]
+        seq[m] = i1[i]
         for q in range(m + 1):
-            v = _path_value(j, q, m, i, vals, i0, i1)
+            v = seq[q]
             if q > 0:
                 lr, _ = _advance_level(lr, math.log(v + eps), cp, cn)
-            vl = _path_value(j, q - 1, m, i, vals, i0, i1) if q > 0 else v
-            vr = _path_value(j, q + 1, m, i, vals, i0, i1) if q < m else v
+            vl = seq[q - 1] if q > 0 else v
+            vr = seq[q + 1] if q < m else v
             lo = (vl > v and vr >= v) or (vl >= v and vr > v)
             hi = (vl < v and vr <= v) or (vl <= v and vr < v)
             if not (lo or hi):
@@ -681,8 +685,8 @@ def _extremum_flags(pix, vals, i0, i1, eps, lref, cpos, cneg, flags):
             # the V's arms: the largest change over the two sub-intervals on either side (the tip may fall
             # between two samples of nearly equal value, so the outer ones count too)
             diff = 0.0
-            for s in range(max(0, q - 2), min(m, q + 2)):
-                diff = max(diff, abs(_path_value(j, s + 1, m, i, vals, i0, i1) - _path_value(j, s, m, i, vals, i0, i1)))
+            for u in range(max(0, q - 2), min(m, q + 2)):
+                diff = max(diff, abs(seq[u + 1] - seq[u]))
             diff *= 2.0
             if (lo and math.log(max(v - diff, 0.0) + eps) <= lr - cn) or (hi and math.log(v + diff + eps) >= lr + cp):
                 if q > 0 and not flags[j, q - 1]:
@@ -720,7 +724,7 @@ def _path_crossing_levels(pix, vals, tt, flags, rvals, rt, i0, i1, t0, t1, eps, 
         ia = i0[i]
         for q in range(m):
             end_t = tt[q] if q < m - 1 else t1
-            end_i = _path_value(j, q + 1, m, i, vals, i0, i1)
+            end_i = vals[j, q] if q < m - 1 else i1[i]
             extra = nr if flags[j, q] else 0
             for r in range(extra + 1):
                 tb = rt[f, r] if r < extra else end_t
@@ -751,34 +755,51 @@ def _path_crossing_levels(pix, vals, tt, flags, rvals, rt, i0, i1, t0, t1, eps, 
 
 
 @njit(cache=True)
-def _shapes_at_translating(pix, t, motion, width, bx, by, starts, values, bcx, bcy, reach2, ccx, ccy, radii,
-                           circle_values, background, clip, out):
+def _shapes_translating(pix, t, grid, motion, width, bx, by, starts, values, bcx, bcy, reach2, ccx, ccy, radii,
+                        circle_values, background, clip, out):
     """:func:`_shapes_at` for a motion without rotation (``theta`` constant): the pixel moves, not the shapes.
 
     ``bx/by`` are the polygons' vertices and ``bcx/bcy`` their bounding
     centres, ``ccx/ccy`` the disk centres, all already rotated by the
-    constant angle (their image positions at ``s = 0``); entry ``j`` is the
-    coverage of the pixel square shifted by ``-s(t[j])`` against them (one
-    sine per entry, no vertex transforms). ``reach2[k]`` is polygon ``k``'s
-    squared skip distance ``(radius + half diagonal)^2``. Equal to
+    constant angle (their image positions at ``s = 0``); an entry is the
+    coverage of the pixel square shifted by ``-s(t)`` against them (one sine
+    per time, no vertex transforms). ``reach2[k]`` is polygon ``k``'s squared
+    skip distance ``(radius + half diagonal)^2``. Entries: pixel ``pix[j]``
+    at time ``t[j]`` (``grid`` False, ``out[j]``), or every pixel at every
+    time (``grid`` True, ``out[j * len(t) + q]``). Equal to
     :func:`_shapes_at` up to rounding (~1e-15).
     """
-    for j in range(pix.shape[0]):
+    nt = t.shape[0]
+    sx = np.empty(nt)
+    sy = np.empty(nt)
+    if grid:
+        for q in range(nt):
+            tq = t[q]
+            sph = math.sin(2.0 * math.pi * (motion[4] * tq + 0.5 * motion[5] * tq * tq))
+            sx[q] = motion[6] * tq + 0.5 * motion[8] * tq * tq + motion[10] * sph
+            sy[q] = motion[7] * tq + 0.5 * motion[9] * tq * tq + motion[11] * sph
+    n = pix.shape[0] * nt if grid else pix.shape[0]
+    for e in range(n):
+        j = e // nt if grid else e
         i = pix[j]
         y = i // width
         x = i - y * width
-        tj = t[j]
-        sph = math.sin(2.0 * math.pi * (motion[4] * tj + 0.5 * motion[5] * tj * tj))
-        px = x - (motion[6] * tj + 0.5 * motion[8] * tj * tj + motion[10] * sph)
-        py = y - (motion[7] * tj + 0.5 * motion[9] * tj * tj + motion[11] * sph)
+        if grid:
+            q = e - j * nt
+            px = x - sx[q]
+            py = y - sy[q]
+        else:
+            tj = t[j]
+            sph = math.sin(2.0 * math.pi * (motion[4] * tj + 0.5 * motion[5] * tj * tj))
+            px = x - (motion[6] * tj + 0.5 * motion[8] * tj * tj + motion[10] * sph)
+            py = y - (motion[7] * tj + 0.5 * motion[9] * tj * tj + motion[11] * sph)
         value = background
         for k in range(values.shape[0]):
             dx = px - bcx[k]
             dy = py - bcy[k]
             if dx * dx + dy * dy > reach2[k]:
                 continue
-            s0 = starts[k]
-            cov = _polygon_pixel_coverage(bx[s0:starts[k + 1]], by[s0:starts[k + 1]], starts[k + 1] - s0, px, py)
+            cov = _polygon_pixel_coverage_from(bx, by, starts[k], starts[k + 1] - starts[k], px, py)
             if cov > 0.0:
                 value += cov * (values[k] - background)
         for k in range(radii.shape[0]):
@@ -787,4 +808,4 @@ def _shapes_at_translating(pix, t, motion, width, bx, by, starts, values, bcx, b
                 value += cov * (circle_values[k] - background)
         if clip:
             value = min(1.0, max(0.0, value))
-        out[j] = value
+        out[e] = value

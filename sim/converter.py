@@ -73,8 +73,13 @@ from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
-#: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
+#: Background-activity noise is generated ahead in fixed blocks of simulated time of at least this length
+#: (each block is a pass over all pixels; the arrivals are each pixel's own sequence, so the block length
+#: does not change them) ...
 _NOISE_BLOCK_S = 0.01
+#: ... and at most this long, aiming at :data:`_NOISE_BLOCK_EVENTS` arrivals per block (memory bound).
+_NOISE_BLOCK_MAX_S = 0.1
+_NOISE_BLOCK_EVENTS = 1e5
 #: Realistic sensor-effect settings (``ConverterParams(**SENSOR_EFFECT_PRESETS[name])``; scenes:
 #: ``[events] effects = name``). ``v2e_noisy``: v2e's ``--dvs_params noisy`` (thresholds 0.2, mismatch
 #: 0.05, photoreceptor cutoff 30 Hz, leak 0.1 Hz with v2e's default 10 % spread, shot noise 5 Hz) with
@@ -324,6 +329,7 @@ class EventConverter:
         # renderers that name the pixels that may be non-monotone over a step (nonmonotone_pixels: the
         # shapes) get those pixels sub-sampled, so no crossing hides inside a step anywhere
         self._subsample = self.exact and callable(getattr(renderer, "nonmonotone_pixels", None))
+        self._grid = callable(getattr(renderer, "pixel_intensity_grid", None))
         self.geometric_steps = mode == "geometric" or (mode == "auto" and self.exact and (
             self._subsample or params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0))))
         if self.geometric_steps:
@@ -590,7 +596,9 @@ class EventConverter:
         empty_i, empty_f, empty_b = self._empty
         # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
         # block grid does not depend on the samples, so neither does the noise)
-        self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
+        block = min(_NOISE_BLOCK_MAX_S, max(_NOISE_BLOCK_S, _NOISE_BLOCK_EVENTS / (p.noise_rate_hz * self.width
+                                                                                  * self.height)))
+        self._noise_until = (math.floor(t1 / block) + 1) * block
         nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
                  self.noise_count)
         m = _noise(*nargs, False, empty_i, empty_f, empty_b)
@@ -717,8 +725,11 @@ class EventConverter:
         m = max(2, int(math.ceil(self._nm_disp / SUBSTEP_PX)))
         tt = t0 + (t1 - t0) * (np.arange(1, m) / m)
         k = nm.shape[0]
-        vals = np.ascontiguousarray(self.renderer.pixel_intensity(np.repeat(nm, m - 1), np.tile(tt, k)),
-                                    dtype=np.float64).reshape(k, m - 1)
+        if self._grid:
+            vals = np.ascontiguousarray(self.renderer.pixel_intensity_grid(nm, tt), dtype=np.float64)
+        else:
+            vals = np.ascontiguousarray(self.renderer.pixel_intensity(np.repeat(nm, m - 1), np.tile(tt, k)),
+                                        dtype=np.float64).reshape(k, m - 1)
         self.n_subsampled += k
         flags = np.zeros((k, m), dtype=np.bool_)
         nf = _extremum_flags(nm, vals, i0, i1, p.log_eps, self.lref, self.cpos, self.cneg, flags)

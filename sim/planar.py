@@ -21,7 +21,7 @@ import numpy as np
 
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
 from ._coverage import _HALF_DIAG
-from ._exact import _nonmonotone_pixels, _shapes_at, _shapes_at_translating, _stripes_at, _stripes_truth
+from ._exact import _nonmonotone_pixels, _shapes_at, _shapes_translating, _stripes_at, _stripes_truth
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 from .thin_edges import mark_circle, mark_segments, mark_stripes
@@ -243,25 +243,60 @@ class ShapesRenderer(_CoverageRenderer):
         """
         cx, cy = self.motion.center_px
         out = np.empty(pix.shape[0])
-        m = self.motion
-        if m.angular_velocity_rad_s == 0.0 and m.angular_acceleration_rad_s2 == 0.0 and m.angle_amplitude_rad == 0.0:
-            if self._translating is None:
-                # the constant rotation applied once: the geometry's image positions at s = 0
-                c, sn = math.cos(m.angle_rad), math.sin(m.angle_rad)
-                rot = lambda x, y: (np.ascontiguousarray(cx + c * (x - cx) - sn * (y - cy)),  # noqa: E731
-                                    np.ascontiguousarray(cy + sn * (x - cx) + c * (y - cy)))
-                self._translating = (*rot(self._px, self._py), *rot(self._bcx, self._bcy),
-                                     (self._br + _HALF_DIAG) ** 2, *rot(self._cx, self._cy))
+        if self._translation_geometry() is not None:
             bx, by, bcx, bcy, reach2, ccx, ccy = self._translating
-            _shapes_at_translating(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_params(),
-                                   self.width, bx, by, self._pstart, self._pvalue, bcx, bcy, reach2, ccx, ccy,
-                                   self._cr, self._cvalue, self.background, self._may_overlap, out)
+            _shapes_translating(pix, np.ascontiguousarray(t_s, dtype=np.float64), False, self._motion_params(),
+                                self.width, bx, by, self._pstart, self._pvalue, bcx, bcy, reach2, ccx, ccy, self._cr,
+                                self._cvalue, self.background, self._may_overlap, out)
             return out
         _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_params(), self.width, cx, cy,
                    self._px, self._py, self._pstart,
                    self._pvalue, self._bcx, self._bcy, self._br, self._cx, self._cy, self._cr, self._cvalue,
                    self.background, self._may_overlap, out)
         return out
+
+    def _translation_geometry(self):
+        """For a motion without rotation: the geometry rotated by its constant angle (image positions at
+        ``s = 0``) for the translating kernels; None when the motion rotates."""
+        m = self.motion
+        if m.angular_velocity_rad_s != 0.0 or m.angular_acceleration_rad_s2 != 0.0 or m.angle_amplitude_rad != 0.0:
+            return None
+        if self._translating is None:
+            cx, cy = m.center_px
+            c, sn = math.cos(m.angle_rad), math.sin(m.angle_rad)
+            rot = lambda x, y: (np.ascontiguousarray(cx + c * (x - cx) - sn * (y - cy)),  # noqa: E731
+                                np.ascontiguousarray(cy + sn * (x - cx) + c * (y - cy)))
+            self._translating = (*rot(self._px, self._py), *rot(self._bcx, self._bcy),
+                                 (self._br + _HALF_DIAG) ** 2, *rot(self._cx, self._cy))
+        return self._translating
+
+    def pixel_intensity_grid(self, pix: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Exact intensity of every flat pixel ``pix[j]`` at every time ``t_s[q]``, as ``out[j, q]``.
+
+        The values of :meth:`pixel_intensity` on the repeated pixels and tiled
+        times (up to rounding, ~1e-15), the motion evaluated once per time
+        when it does not rotate.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from evedge.sim.motion import PlanarMotion
+        >>> r = ShapesRenderer(8, 8, [Circle((3.5, 3.5), 2.0, 0.2)], PlanarMotion(velocity_px_s=(10.0, 0.0)))
+        >>> r.pixel_intensity_grid(np.array([27, 28]), np.array([0.0, 0.05])).shape
+        (2, 2)
+        """
+        pix = np.ascontiguousarray(pix, dtype=np.int64)
+        t_s = np.ascontiguousarray(t_s, dtype=np.float64)
+        geo = self._translation_geometry()
+        if geo is None:
+            return self.pixel_intensity(np.repeat(pix, t_s.shape[0]), np.tile(t_s, pix.shape[0])).reshape(
+                pix.shape[0], t_s.shape[0])
+        out = np.empty(pix.shape[0] * t_s.shape[0])
+        bx, by, bcx, bcy, reach2, ccx, ccy = geo
+        _shapes_translating(pix, t_s, True, self._motion_params(), self.width, bx, by, self._pstart, self._pvalue,
+                            bcx, bcy, reach2, ccx, ccy, self._cr, self._cvalue, self.background, self._may_overlap,
+                            out)
+        return out.reshape(pix.shape[0], t_s.shape[0])
 
     def nonmonotone_pixels(self, t0_s: float, t1_s: float, reach_px: float) -> np.ndarray:
         """Pixels whose intensity may not be monotone in time over ``[t0_s, t1_s]``.
