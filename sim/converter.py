@@ -68,6 +68,7 @@ from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_f
 from ._coverage import _HALF_DIAG
 from ._exact import (_crossing_levels, _drop_marked, _extremum_flags, _hidden_crossing, _path_crossing_levels,
                      _refractory_jitter, _root_start, _root_step)
+from ._order import _time_pixel_order
 from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
@@ -330,8 +331,10 @@ class EventConverter:
         # shapes) get those pixels sub-sampled, so no crossing hides inside a step anywhere
         self._subsample = self.exact and callable(getattr(renderer, "nonmonotone_pixels", None))
         self._grid = callable(getattr(renderer, "pixel_intensity_grid", None))
+        # monotone: no pixel can hide a crossing inside a step (then the midpoint check is skipped too)
+        self._monotone = params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0))
         self.geometric_steps = mode == "geometric" or (mode == "auto" and self.exact and (
-            self._subsample or params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0))))
+            self._subsample or self._monotone))
         if self.geometric_steps:
             self.verified = False
         self.reset()
@@ -504,7 +507,8 @@ class EventConverter:
             while True:
                 t1 = min(self.t + dt, self.duration_s)
                 i1, spans, n_spans = self._candidate(t1)
-                if t1 - self.t <= p.min_step_s * 1.0000001 or not self._hides_crossing(0.5 * (self.t + t1)):
+                if (self._monotone or t1 - self.t <= p.min_step_s * 1.0000001
+                        or not self._hides_crossing(0.5 * (self.t + t1))):
                     break
                 self.n_rejected += 1
                 dt = max(p.min_step_s, 0.5 * (t1 - self.t))
@@ -892,13 +896,21 @@ class EventConverter:
                 self._pending.append((pix[keep], t[keep], t_true[keep], pol[keep], last[keep]))
         if not np.all(done):
             pix, t, t_true, pol, last, t_us = (a[done] for a in (pix, t, t_true, pol, last, t_us))
-        key = t_us * (self.width * self.height) + pix
-        # the parts are nearly sorted runs: a stable sort of the one key is fast, and equals the
-        # lexsort below when no key repeats
-        order = np.argsort(key, kind="stable")
-        sorted_key = key[order]
-        if np.any(sorted_key[1:] == sorted_key[:-1]):
-            order = np.lexsort((t, key))
+        npix = self.width * self.height
+        n = t_us.shape[0]
+        # order by (t_us, pix): counting sorts when the time range is not much larger than the events (a
+        # flush spans about a chunk), else a stable sort of the one key (the same order); both equal the
+        # lexsort below when no (t_us, pix) pair repeats
+        if n and int(t_us.max()) - int(t_us.min()) <= 4 * n + 100_000:
+            order = np.empty(n, dtype=np.int64)
+            ties = _time_pixel_order(t_us, np.ascontiguousarray(pix, dtype=np.int64), npix, order)
+        else:
+            key = t_us * npix + pix
+            order = np.argsort(key, kind="stable")
+            sorted_key = key[order]
+            ties = bool(np.any(sorted_key[1:] == sorted_key[:-1]))
+        if ties:
+            order = np.lexsort((t, t_us * npix + pix))
         return pix[order], t_true[order], pol[order], last[order], t_us[order], t[order]
 
     def _events(self, pix, t_us, pol):
