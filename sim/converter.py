@@ -5,11 +5,11 @@ threshold mismatch, refractory period, background-activity noise, latency
 jitter, per-event ground truth, counter-based randomness (chunk-independent)
 and two-pass output sizing (count, then fill) as in esim_torch.
 
-Adaptive sampling, two modes (``sampling``):
+Adaptive sampling, three modes (``sampling``):
 
-- ``"verified"`` (the default: renderers whose intensity is a continuous
-  function of time, i.e. exact area coverage, like the analytic renderers and
-  the exact 3-D renderer): after a sample at ``t`` the next step is
+- ``"verified"`` (the default for renderers whose intensity is a continuous
+  function of time, i.e. exact area coverage, like the exact 3-D renderer,
+  unless geometric steps apply): after a sample at ``t`` the next step is
   proposed as ``min(1 / min_rate_hz, max_step_px / v_max,
   dt_prev * min(2, 0.9 lambda C / dL_prev))`` where ``dL_prev`` is the
   previous step's largest ``|Delta L|`` over the image, ``C`` the smallest
@@ -25,15 +25,24 @@ Adaptive sampling, two modes (``sampling``):
   ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
   differences of the current sample, capped as above by ``1 / min_rate_hz``
   and ``max_step_px / v_max``.
-- ``"geometric"`` (exact crossing times only; what ``"auto"`` picks for a
-  renderer whose pixels are monotone in time over a step of ``max_step_px``,
-  ``monotone_step_px``, as the stripes are): steps of
-  ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (the times do
-  not need it), halved while the step's midpoint shows an excursion that
-  hides a crossing (a pixel beyond a level that neither end reaches); an
-  excursion shorter than half a step can still be missed (measured on
-  ``shapes_translation``: 0.05 % of the events, at star tips; none on
-  ``stripes``).
+- ``"geometric"`` (exact crossing times only): steps of
+  ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (exact times
+  do not need it). What ``"auto"`` picks for the analytic planar renderers:
+
+  * a renderer whose pixels are monotone in time over a step of
+    ``max_step_px`` (``monotone_step_px``, the stripes) has nothing to hide
+    inside a step;
+  * a renderer that names the pixels it cannot prove monotone over a step
+    (``nonmonotone_pixels``, the shapes: the sign of each boundary piece's
+    normal speed, see :func:`evedge.sim._exact._nonmonotone_pixels`) has
+    those sub-sampled (``pixel_intensity`` every :data:`SUBSTEP_PX` of image
+    motion, :data:`EXTREMUM_SPLIT` times finer beside an extremum that may
+    reach a new level): measured, the counts per (pixel, polarity) equal a
+    dense reference (0.02 px verified steps) on both shapes scenes and on
+    thin fast features (``tests/sim/test_completeness.py``);
+  * any other renderer (opt-in) has each step halved while its midpoint shows
+    an excursion hiding a crossing (a pixel beyond a level neither end
+    reaches); an excursion shorter than half a step can still be missed.
 - Renderers with fixed sample times (``next_sample_s``: frames input) are
   sampled exactly there.
 
@@ -94,6 +103,11 @@ SENSOR_EFFECT_PRESETS = {
 SAMPLING = ("auto", "verified", "predicted", "geometric")
 #: Values of ``ConverterParams.crossing_times``.
 CROSSING_TIMES = ("auto", "exact", "linear")
+#: Geometric steps: a pixel the renderer cannot prove monotone over a step is sub-sampled so that the
+#: image moves at most this far (px) between its sub-samples.
+SUBSTEP_PX = 0.1
+#: ... and a sub-interval beside an extremum that may reach a new level is split this many times more.
+EXTREMUM_SPLIT = 16
 #: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
 EXACT_TOL_S = 1e-10
 #: ... or when the secant through the last two evaluations puts the root this close (s) after the point
@@ -105,11 +119,6 @@ EXACT_TOL_I = 1e-13
 #: instant the level is reached (a time bias of 1e-11 / |dI/dt| s; where the intensity only touches
 #: the level, as on returning to a plateau, sqrt(1e-11 / a) for I = a (t - t*)^2, tens of ns).
 EXACT_SHIFT_I = 1e-11
-#: Geometric steps: a pixel the renderer cannot prove monotone over a step is sub-sampled so that the
-#: image moves at most this far (px) between its sub-samples.
-SUBSTEP_PX = 0.1
-#: ... and a sub-interval beside an extremum that may reach a new level is split this many times more.
-EXTREMUM_SPLIT = 16
 #: ... or after this many steps (a safeguard; about 4 are needed on average, a few dozen at worst).
 _EXACT_MAX_STEPS = 100
 
@@ -147,9 +156,11 @@ class ConverterParams:
     min_step_s : float
         Smallest step (guards against stalls on discontinuous intensity).
     sampling : str
-        ``"auto"`` (verified unless the renderer has an attribute
-        ``continuous_in_time`` set to False), ``"verified"`` or
-        ``"predicted"`` (see the module docstring).
+        ``"auto"`` (geometric with exact crossing times on a renderer with
+        ``monotone_step_px`` above ``max_step_px`` or with
+        ``nonmonotone_pixels``; else verified unless the renderer has an
+        attribute ``continuous_in_time`` set to False), ``"verified"``,
+        ``"predicted"`` or ``"geometric"`` (see the module docstring).
     crossing_times : str
         ``"auto"`` (exact when the renderer offers ``pixel_intensity`` and
         geometric truth, as the analytic planar renderers do, and no sensor
