@@ -809,3 +809,30 @@ def _shapes_translating(pix, t, grid, motion, width, bx, by, starts, values, bcx
         if clip:
             value = min(1.0, max(0.0, value))
         out[e] = value
+
+
+@njit(cache=True)
+def _shapes_truth_points(x, y, t, motion, center_x, center_y, rotating, qx, qy, vx, vy, cos_t, sin_t):
+    """Per point of :meth:`~evedge.sim.planar.ShapesRenderer.point_truth`: the motion field and the object point.
+
+    ``(vx, vy)`` is the motion field at image point ``(x, y)`` and time ``t``
+    (:meth:`~evedge.sim.motion.PlanarMotion.flow_at`), ``(qx, qy)`` the point
+    moved back to object coordinates (``R(-theta)``), ``cos_t``/``sin_t`` of
+    the angle (for the normal's way back); the formulas of
+    :func:`_motion_full`, one pass. Without rotation (``rotating`` False) the
+    angle is the constant ``motion[0]``.
+    """
+    c0 = math.cos(motion[0])
+    s0 = math.sin(motion[0])
+    for j in range(x.shape[0]):
+        th, w, sx, sy, v0x, v0y = _motion_full(motion, t[j])
+        c = math.cos(th) if rotating else c0
+        s = math.sin(th) if rotating else s0
+        rx = x[j] - center_x - sx
+        ry = y[j] - center_y - sy
+        vx[j] = v0x - w * ry
+        vy[j] = v0y + w * rx
+        qx[j] = center_x + c * rx + s * ry
+        qy[j] = center_y - s * rx + c * ry
+        cos_t[j] = c
+        sin_t[j] = s

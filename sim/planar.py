@@ -21,7 +21,8 @@ import numpy as np
 
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
 from ._coverage import _HALF_DIAG
-from ._exact import _nonmonotone_pixels, _shapes_at, _shapes_translating, _stripes_at, _stripes_truth
+from ._exact import (_nonmonotone_pixels, _shapes_at, _shapes_translating, _shapes_truth_points, _stripes_at,
+                     _stripes_truth)
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 from .thin_edges import mark_circle, mark_segments, mark_stripes
@@ -364,24 +365,22 @@ class ShapesRenderer(_CoverageRenderer):
         return self.motion.max_speed_px_s(t0_s, t1_s, self.width, self.height)
 
     def point_truth(self, x, y, t_s):
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        t_s = np.asarray(t_s, dtype=np.float64)
+        x, y, t_s = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (x, y, t_s)))
+        shape = x.shape
+        x, y, t_s = (np.ascontiguousarray(a).ravel() for a in (x, y, t_s))
         m = self.motion
-        theta, w, sx, sy, v0x, v0y = m.state(t_s)
-        c, s = np.cos(theta), np.sin(theta)
         cx, cy = m.center_px
-        rx, ry = x - cx - sx, y - cy - sy
-        vx, vy = v0x - w * ry, v0y + w * rx  # the motion field, as PlanarMotion.flow_at (one state evaluation)
-        qx = np.ascontiguousarray(cx + c * rx + s * ry)  # R(-theta)
-        qy = np.ascontiguousarray(cy - s * rx + c * ry)
+        # the motion field and the point in object coordinates, R(-theta) (PlanarMotion's formulas, one pass)
+        qx, qy, vx, vy, c, s = (np.empty_like(x) for _ in range(6))
+        _shapes_truth_points(x, y, t_s, self._motion_params(), cx, cy, self._translation_geometry() is None,
+                             qx, qy, vx, vy, c, s)
         onx = np.empty_like(qx)
         ony = np.empty_like(qx)
         _nearest_outward_normal(qx, qy, self._px, self._py, self._pstart, self._porient, self._pflip,
                                 self._cx, self._cy, self._cr, self._cflip, onx, ony)
         nx = c * onx - s * ony  # back to the image frame: R(theta)
         ny = s * onx + c * ony
-        return np.asarray(vx, dtype=np.float64), np.asarray(vy, dtype=np.float64), nx, ny
+        return vx.reshape(shape), vy.reshape(shape), nx.reshape(shape), ny.reshape(shape)
 
     def close(self) -> None:
         pass
