@@ -305,8 +305,8 @@ class EventConverter:
             raise TypeError(f"duration_s must be a number of seconds, got {duration_s!r}")
         if not (duration_s > 0 and math.isfinite(duration_s)):
             raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
-        if duration_s > 9e12:  # event times are int64 microseconds (the scene's MAX_DURATION_S)
-            raise ValueError(f"duration_s must be <= 9e12, got {duration_s!r}")
+        if duration_s > 9e9:  # the truth's t_ns are int64 nanoseconds (the scene's MAX_DURATION_S)
+            raise ValueError(f"duration_s must be <= 9e9, got {duration_s!r}")
         self.renderer = renderer
         self.params = params
         self.seed = int(seed)
