@@ -44,7 +44,9 @@ Adaptive sampling, three modes (``sampling``):
     an excursion hiding a crossing (a pixel beyond a level neither end
     reaches); an excursion shorter than half a step can still be missed.
 - Renderers with fixed sample times (``next_sample_s``: frames input) are
-  sampled exactly there.
+  sampled exactly there; when they offer ``samples`` (batches of frames) and
+  no sensor effect is on, each batch is one call of a fused scan-and-crossings
+  kernel (:func:`evedge.sim._events._frames_batch`), the same events as frame by frame.
 
 Crossing times (``crossing_times``): ``"exact"`` (the default where the
 renderer offers ``pixel_intensity``, the analytic planar scenes) solves each
@@ -73,7 +75,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan, _scan_frame
+from ._events import (_box_spans, _crossings, _frames_batch, _max_log_gradient, _noise, _noise_first_arrivals,
+                      _scan, _scan_frame)
 from ._coverage import _HALF_DIAG
 from ._exact import (_crossing_levels, _drop_marked, _extremum_flags, _hidden_crossing, _path_crossing_levels,
                      _refractory_jitter, _root_start, _root_step)
@@ -302,8 +305,8 @@ class EventConverter:
             raise TypeError(f"duration_s must be a number of seconds, got {duration_s!r}")
         if not (duration_s > 0 and math.isfinite(duration_s)):
             raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
-        if duration_s > 9e12:  # event times are int64 microseconds (the scene's MAX_DURATION_S)
-            raise ValueError(f"duration_s must be <= 9e12, got {duration_s!r}")
+        if duration_s > 9e9:  # the truth's t_ns are int64 nanoseconds (the scene's MAX_DURATION_S)
+            raise ValueError(f"duration_s must be <= 9e9, got {duration_s!r}")
         self.renderer = renderer
         self.params = params
         self.seed = int(seed)
@@ -315,6 +318,8 @@ class EventConverter:
         mode = params.sampling
         # renderers with fixed sample times (frames input): sample exactly there, nothing to verify
         self._fixed = callable(getattr(renderer, "next_sample_s", None))
+        # ... in batches of frames (frames input without sensor effects): set below, after sensor_effects
+        self._batched = False
         self._source_name = str(getattr(renderer, "name", type(renderer).__name__))
         self._has_flow = bool(getattr(renderer, "has_flow", True))
         if mode == "auto":
@@ -332,6 +337,10 @@ class EventConverter:
                              "(lowpass_cutoff_hz, leak_rate_hz, shot_noise_rate_hz, noise_resets): they act on "
                              "the sampled log intensity; use 'linear' or 'auto'")
         self.exact = can_exact and params.crossing_times != "linear" and not self.sensor_effects
+        self._batched = (self._fixed and not self.sensor_effects and not self._has_flow
+                         and callable(getattr(renderer, "samples", None)))
+        # frames per batch: about 16 MB of float64 images (48 at 240x180, 2 at 1280x720)
+        self._batch_n = max(1, (1 << 24) // (8 * self.width * self.height))
         if mode == "geometric" and not self.exact:
             raise ValueError("ConverterParams.sampling='geometric' needs exact crossing times (a renderer with "
                              "pixel_intensity and point_truth, no sensor effects)")
@@ -402,6 +411,7 @@ class EventConverter:
         self.n_samples = 0
         self.n_rejected = 0
         self.n_root_steps = 0
+        self._batch_events = 0  # events of the last batch of frames (sizes the next one's buffers)
         self.n_subsampled = 0  # pixel-steps sub-sampled (geometric steps, non-monotone pixels)
         self.n_extremum_splits = 0  # their sub-intervals sampled more densely around extrema
         self._nm = self._empty[0]  # this step's non-monotone pixels
@@ -551,6 +561,47 @@ class EventConverter:
         if t1 < self.duration_s:  # the clipped last step says nothing about the next one
             self._dt = step * grow
         self._advance(t1, i1, n_cand)
+
+    def _frames_step(self, limit: float) -> None:
+        """Frames input in batches: the renderer's next samples up to the first at or after ``limit``, one kernel call.
+
+        The samples are those :meth:`_step` would take one by one (the
+        renderer's ``samples`` follows ``next_sample_s``), and so are the
+        events, the state and the noise afterwards.
+        """
+        p = self.params
+        times, images = self.renderer.samples(self.t, limit, self._batch_n)
+        times = np.minimum(np.asarray(times, dtype=np.float64), self.duration_s)
+        n = times.shape[0]
+        name = type(self.renderer).__name__
+        if n == 0 or not (times[0] > self.t and np.all(times[1:] > times[:-1])):
+            raise ValueError(f"renderer {name}.samples({self.t}) returned times that do not increase after it: "
+                             f"{times[:5]!r}")
+        images = np.asarray(images)
+        if images.shape != (n, self.height, self.width):
+            raise ValueError(f"renderer {name}.samples({self.t}) returned images of shape {images.shape}, "
+                             f"expected ({n}, {self.height}, {self.width})")
+        flat = np.ascontiguousarray(images, dtype=np.float64).reshape(-1)
+        bad = np.zeros(n, dtype=np.int64)
+        cap = max(1024, 2 * self._batch_events)
+        out = (np.empty(cap, dtype=np.int64), np.empty(cap), np.empty(cap), np.empty(cap, dtype=np.bool_))
+        m, pix, t_true, t_emit, pol = _frames_batch(
+            flat, n, times, self._i, self.t, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg,
+            self.last_t, p.refractory_us * 1e-6, self.seq, p.jitter_us * 1e-6, self._jitter_seed, bad, self._cand,
+            *out)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"{self._source_name}: the sample at t = {float(times[k])!r} s has {int(bad[k])} "
+                             "non-finite pixel values")
+        self._batch_events = m
+        if m:
+            self._pending.append((pix[:m], t_emit[:m], t_true[:m], pol[:m], None))  # truth at the flush
+        t1 = float(times[-1])
+        self.t = t1
+        self._i = flat[(n - 1) * self.width * self.height:].copy()  # the renderer may reuse its buffer
+        self.n_samples += n
+        if p.noise_rate_hz > 0 and t1 > self._noise_until:
+            self._noise_block(t1)
 
     def _advance(self, t1: float, i1: np.ndarray, n_cand: int) -> None:
         """Emit the events of ``[self.t, t1]`` (``n_cand`` candidates scanned) and make ``t1`` the present sample."""
@@ -995,8 +1046,12 @@ class EventConverter:
             raise ValueError("process: until_s must not be NaN")
         if self.done:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
-        while self.t < min(until_s, self.duration_s):
-            self._step()
+        limit = min(until_s, self.duration_s)
+        while self.t < limit:
+            if self._batched:
+                self._frames_step(limit)
+            else:
+                self._step()
         if self.t >= self.duration_s:
             self.done = True
             return self._flush(None)

@@ -83,7 +83,7 @@ CASES = [
     (("sections",), [{"name": "a", "start_s": 0.05, "end_s": 0.01}], "sections[0].end_s", "must be > start_s"),
     (("sections",), [{"name": "a", "start_s": 0.0, "end_s": 5.0}], "sections[0].end_s", "must be <= scene.duration_s"),
     # beyond these the run never ends or times wrap around int64 microseconds
-    (("scene", "duration_s"), 1e300, "scene.duration_s", "must be <= 9000000000000.0"),
+    (("scene", "duration_s"), 1e300, "scene.duration_s", "must be <= 9000000000.0"),
     (("events",), {"noise_rate_hz": 1e300}, "events.noise_rate_hz", "must be <= 1000000.0"),
     (("events",), {"jitter_us": 1e300}, "events.jitter_us", "must be <= 1000000000000.0"),
     (("events",), {"noise_rate_hz": 10**400}, "events.noise_rate_hz", "must be finite, got an integer of 401 digits"),
@@ -159,7 +159,7 @@ def test_analytic_path_never_imports_pyrender(tmp_path):
 def test_simulate_and_converter_params_bound_what_the_scene_bounds():
     from evedge.sim import ConverterParams
 
-    with pytest.raises(ValueError, match=r"duration_s must be <= 9e\+12"):
+    with pytest.raises(ValueError, match=r"duration_s must be <= 9e\+09"):
         simulate(parse_scene(_base()), duration_s=1e100, progress=False)
     for name, value in (("lambda_", 2.0), ("noise_rate_hz", 1e300), ("jitter_us", 1e300)):
         with pytest.raises(ValueError, match=f"ConverterParams.{name} must be <= "):
