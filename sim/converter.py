@@ -843,10 +843,15 @@ class EventConverter:
         self._raw = []
         p = self.params
         pix, level, pol, ia, ib = (np.concatenate([c[k] for c in parts]) for k in (0, 1, 2, 5, 6))
-        # the bracket of each crossing: the part's step, or per crossing (sub-sampled pixels)
-        ta = np.concatenate([np.broadcast_to(c[3], c[0].shape) for c in parts])
-        tb = np.concatenate([np.broadcast_to(c[4], c[0].shape) for c in parts])
         n = pix.shape[0]
+        # the bracket of each crossing: the part's step, or per crossing (sub-sampled pixels)
+        ta, tb = np.empty(n), np.empty(n)
+        start = 0
+        for c in parts:
+            stop = start + c[0].shape[0]
+            ta[start:stop] = c[3]
+            tb[start:stop] = c[4]
+            start = stop
         fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
         active = np.empty(n, dtype=np.bool_)
         side = np.zeros(n, dtype=np.int8)
