@@ -305,8 +305,8 @@ class EventConverter:
             raise TypeError(f"duration_s must be a number of seconds, got {duration_s!r}")
         if not (duration_s > 0 and math.isfinite(duration_s)):
             raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
-        if duration_s > 9e12:  # event times are int64 microseconds (the scene's MAX_DURATION_S)
-            raise ValueError(f"duration_s must be <= 9e12, got {duration_s!r}")
+        if duration_s > 9e9:  # the truth's t_ns are int64 nanoseconds (the scene's MAX_DURATION_S)
+            raise ValueError(f"duration_s must be <= 9e9, got {duration_s!r}")
         self.renderer = renderer
         self.params = params
         self.seed = int(seed)
@@ -843,10 +843,15 @@ class EventConverter:
         self._raw = []
         p = self.params
         pix, level, pol, ia, ib = (np.concatenate([c[k] for c in parts]) for k in (0, 1, 2, 5, 6))
-        # the bracket of each crossing: the part's step, or per crossing (sub-sampled pixels)
-        ta = np.concatenate([np.broadcast_to(c[3], c[0].shape) for c in parts])
-        tb = np.concatenate([np.broadcast_to(c[4], c[0].shape) for c in parts])
         n = pix.shape[0]
+        # the bracket of each crossing: the part's step, or per crossing (sub-sampled pixels)
+        ta, tb = np.empty(n), np.empty(n)
+        start = 0
+        for c in parts:
+            stop = start + c[0].shape[0]
+            ta[start:stop] = c[3]
+            tb[start:stop] = c[4]
+            start = stop
         fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
         active = np.empty(n, dtype=np.bool_)
         side = np.zeros(n, dtype=np.int8)

@@ -1,9 +1,10 @@
 """A bounded, seeded fuzz run of every public reader: no traceback, crash, hang or unbounded allocation.
 
-80 malformed inputs per target, 16 targets (mutations of the real recordings
-beside the repository when present and of generated files in every registered
-format, crafted HDF5/.mat/AEDAT4/PNG structures, mutated scenes and dataset
-specs, detection files), each in a worker under a 2 GiB address-space and
+80 malformed inputs per target, every target of ``TARGETS`` (mutations of the
+real recordings beside the repository when present and of generated files in
+every registered format, crafted HDF5/.mat/AEDAT4/PNG/JPEG/video structures,
+mutated scenes, dataset specs, meshes, detection files, frames folders and
+videos with their timestamps), each in a worker under a 2 GiB address-space and
 a 20 s time limit. Every failure must be the documented error naming the file;
 a corrupted evedge HDF5 file must never read as a different recording. The
 long campaign is ``benchmarks/fuzz_campaign.py``.

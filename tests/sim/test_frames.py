@@ -258,6 +258,131 @@ def test_frames_api_refuses_bad_arguments(tmp_path):
         open_frames_folder(tmp_path, rate_hz=10.0, timestamps=np.array([0.0, 1.0]))
 
 
+# --------------------------------------------------------------------------- damaged files, bounds (issue 14)
+def _png(width, height, rows):
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    raw = zlib.compress(b"".join(b"\0" + bytes(width) for _ in range(rows)))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
+
+
+def _folder(tmp_path, n=3, ext=".png"):
+    import cv2
+
+    folder = tmp_path / "frames"
+    folder.mkdir(parents=True)
+    for k in range(n):
+        cv2.imwrite(str(folder / f"{k}{ext}"), np.full((4, 5), 40 * k + 20, np.uint8))
+    (folder / "timestamps.txt").write_text("".join(f"{k / 100}\n" for k in range(n)))
+    return folder
+
+
+def test_declared_frame_sizes_are_checked_before_decoding(tmp_path, monkeypatch):
+    import cv2
+
+    folder = _folder(tmp_path)
+    decoded = []
+    real = cv2.imdecode
+    monkeypatch.setattr(cv2, "imdecode", lambda *a: decoded.append(1) or real(*a))
+    # 2^30 pixels declared in 100 bytes: OpenCV would allocate 1 GiB, then raise its own assertion (no FramesError)
+    (folder / "0.png").write_bytes(_png(32768, 32768, 1))
+    with pytest.raises(FramesError, match=r"0.png: frame size 32768x32768 is outside 1..32767"):
+        open_frames_folder(folder)
+    (folder / "0.png").write_bytes(_png(30000, 30000, 1))  # inside the side bound: the memory check refuses it
+    from evedge import _resources
+    monkeypatch.setattr(_resources, "available_memory_bytes", lambda: 2**30)
+    with pytest.raises(FramesError, match=r"0.png: frames of 30000x30000 needs about .* GiB; this machine has 1 GiB"):
+        open_frames_folder(folder)
+    assert decoded == []
+    # a later frame that declares another size is refused before it is decoded
+    cv2.imwrite(str(folder / "0.png"), np.zeros((4, 5), np.uint8))
+    (folder / "2.png").write_bytes(_png(20000, 20000, 1))
+    src = open_frames_folder(folder)
+    with pytest.raises(FramesError, match=r"2.png: frame 2 is 20000x20000, expected 5x4 like the first frame"):
+        simulate_frames(src, progress=False)
+    assert len(decoded) == 3  # frame 0 when opened, frames 0 and 1 in the run: never frame 2
+
+
+def test_damaged_images_are_named_errors(tmp_path):
+    import cv2
+
+    folder = _folder(tmp_path, ext=".jpg")
+    img = (np.random.default_rng(0).random((4, 5)) * 255).astype(np.uint8)
+    cv2.imwrite(str(folder / "1.jpg"), img)
+    data = (folder / "1.jpg").read_bytes()
+    (folder / "1.jpg").write_bytes(data[:-100] + bytes(100))  # a zeroed tail: OpenCV alone decodes other pixels
+    assert not np.array_equal(cv2.imread(str(folder / "1.jpg"), cv2.IMREAD_GRAYSCALE), cv2.imdecode(
+        np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE))
+    with pytest.raises(FramesError, match=r"1.jpg: the JPEG ends before its end-of-image marker"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    (folder / "1.jpg").write_bytes(b"\xff\xd8 not a jpeg")
+    with pytest.raises(FramesError, match=r"1.jpg: not a readable image \(unknown or damaged header\)"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    png = _folder(tmp_path / "p")
+    (png / "1.png").write_bytes(_png(5, 4, 2))  # rows missing: libpng's error, as a named error
+    with pytest.raises(FramesError, match=r"1.png: OpenCV cannot read it as an image"):
+        simulate_frames(open_frames_folder(png), progress=False)
+    tif = _folder(tmp_path / "t", ext=".tiff")
+    bad = np.full((4, 5), 0.5, np.float32)
+    bad[1, 2] = np.nan
+    cv2.imwrite(str(tif / "2.tiff"), bad)
+    with pytest.raises(FramesError, match=r"2.tiff: float pixels must be finite and >= 0"):
+        simulate_frames(open_frames_folder(tif), progress=False)
+
+
+def test_frame_times_are_bounded_and_a_long_gap_is_not_many_chunks(tmp_path):
+    folder = _folder(tmp_path)
+    # 9.3e9 s: the truth's t_ns (int64 ns) would overflow; refused, naming the file
+    (folder / "timestamps.txt").write_text("0\n1\n9.3e9\n")
+    with pytest.raises(FramesError, match=r"timestamps.txt: frame times span 9300000000.0 s, more than 9e\+09 s"):
+        open_frames_folder(folder)
+    # 8e9 s between two frames: one chunk (the loop used to take 1.6e11 steps of chunk_s)
+    (folder / "timestamps.txt").write_text("0\n0.01\n8e9\n")
+    rec = simulate_frames(open_frames_folder(folder), progress=False, chunk_s=0.05)
+    ev, tr = rec.events, rec.truth
+    assert ev.shape[0] > 0 and ev["t"][-1] > 1e12  # events in the long interval
+    assert np.all(np.abs(tr["t_ns"] - ev["t"] * 1000) <= 500 + 2e9 * np.spacing(8e9))
+    # the chunking still does not change the output
+    again = simulate_frames(open_frames_folder(folder), progress=False, chunk_s=1e9)
+    assert again.events.tobytes() == ev.tobytes() and again.truth.tobytes() == tr.tobytes()
+
+
+def test_noise_over_long_frame_times_is_refused_before_work(tmp_path):
+    folder = _folder(tmp_path)
+    (folder / "timestamps.txt").write_text("0\n1\n8e9\n")
+    with pytest.raises(FramesError, match=r"frames: 5x4 for 8e\+09 s of frames \(about 1.6e\+12 noise events at "
+                                          r"noise_rate_hz=10\) needs about .* GiB"):
+        simulate_frames(open_frames_folder(folder), ConverterParams(noise_rate_hz=10.0), progress=False)
+
+
+def test_video_decoder_errors_are_named(tmp_path):
+    frames, _ = _rendered_frames(6)
+    _write_video(tmp_path / "v.avi", np.rint(frames * 255).astype(np.uint8), 250.0)
+    data = (tmp_path / "v.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[:300])
+    with pytest.raises(FramesError, match=r"cut.avi: (OpenCV cannot open it as a video|no decodable frame)"):
+        open_video(tmp_path / "cut.avi")
+
+
+def test_a_png_chunk_length_past_the_end_is_refused_before_opencv(tmp_path):
+    folder = _folder(tmp_path)
+    data = bytearray((folder / "1.png").read_bytes())
+    data[33] ^= 0xA7  # the first chunk after IHDR now claims ~2.8 GB: OpenCV spends seconds on it
+    (folder / "1.png").write_bytes(bytes(data))
+    with pytest.raises(FramesError, match=r"1.png: PNG chunk b'.{4}' at byte 33 claims \d+ bytes past the end"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    data[33] ^= 0xA7
+    data[45] ^= 0x01  # a byte of the (IDAT) chunk's body: PIL reads the header only
+    (folder / "1.png").write_bytes(bytes(data))
+    with pytest.raises(FramesError, match=r"1.png: PNG chunk .* at byte 33 fails its CRC"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+
+
 @pytest.mark.parametrize("case", ["plain", "pixel_model", "log_upsample", "log_upsample_odd", "flow_upsample",
                                   "log_input", "log_input_upsample", "uint8", "resize"])
 def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
