@@ -180,9 +180,7 @@ class FramesRun:
 
 def _frames_run(source) -> FramesRun:
     """Simulate ``source`` as ``evedge simulate`` does (the frames are decoded lazily, mid-run), then hash them."""
-    from evedge.sim.frames import simulate_frames
-
-    rec = simulate_frames(source, progress=False)
+    rec = _resolve("evedge.sim.frames:simulate_frames")(source, progress=False)
     h = hashlib.sha256()
     for k in range(len(source)):
         h.update(np.ascontiguousarray(source.frame(k)).tobytes())
@@ -193,19 +191,15 @@ def _frames_run(source) -> FramesRun:
 
 def frames_folder(path: str) -> FramesRun:
     """``evedge simulate --frames DIR``: :func:`~evedge.sim.frames.open_frames_folder` and a run."""
-    from evedge.sim.frames import open_frames_folder
-
-    return _frames_run(open_frames_folder(path))
+    return _frames_run(_resolve("evedge.sim.frames:open_frames_folder")(path))
 
 
 def video_file(path: str) -> FramesRun:
     """``evedge simulate --video FILE [--timestamps timestamps.txt]`` (when the case holds a timestamps file)."""
     from pathlib import Path
 
-    from evedge.sim.frames import open_video
-
     ts = Path(path).with_name("timestamps.txt")
-    return _frames_run(open_video(path, timestamps=ts if ts.is_file() else None))
+    return _frames_run(_resolve("evedge.sim.frames:open_video")(path, timestamps=ts if ts.is_file() else None))
 
 
 def check_frames_run(run: FramesRun, case: dict) -> str | None:

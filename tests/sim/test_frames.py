@@ -383,8 +383,8 @@ def test_a_png_chunk_length_past_the_end_is_refused_before_opencv(tmp_path):
         simulate_frames(open_frames_folder(folder), progress=False)
 
 
-@pytest.mark.parametrize("case", ["plain", "pixel_model", "log_upsample", "flow_upsample", "log_input", "uint8",
-                                  "resize"])
+@pytest.mark.parametrize("case", ["plain", "pixel_model", "log_upsample", "log_upsample_odd", "flow_upsample",
+                                  "log_input", "log_input_upsample", "uint8", "resize"])
 def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
     """The fused batch kernel (one call per batch of frames) against the converter's frame-by-frame path."""
     # more events per batch than the first buffers hold (they grow)
@@ -395,10 +395,16 @@ def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
         params = ConverterParams(contrast_sigma=0.05, noise_rate_hz=40.0, refractory_us=150.0, jitter_us=3.0)
     elif case == "log_upsample":
         kw = dict(upsample=3, interpolation="log")
+    elif case == "log_upsample_odd":  # rows of the batch not 64-byte aligned (405 float64 per frame)
+        frames, t = _rendered_frames(70, rate_hz=2000.0, size=(27, 15))
+        frames = np.repeat(frames, 3, axis=0)[:70] * np.linspace(0.7, 1.0, 70)[:, None, None]
+        kw = dict(upsample=5, interpolation="log")
     elif case == "flow_upsample":
         kw = dict(upsample=2, interpolation="flow")
     elif case == "log_input":
         frames, kw = np.log(frames + EPS), dict(log_input=True)
+    elif case == "log_input_upsample":
+        frames, kw = np.log(frames + EPS), dict(log_input=True, upsample=2)
     elif case == "uint8":
         frames = np.rint(frames * 255).astype(np.uint8)
     elif case == "resize":
