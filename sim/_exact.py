@@ -569,6 +569,8 @@ def _nonmonotone_pixels(motion, t0, t1, reach, width, height, center_x, center_y
             ty[q, 0] = my + r * uy
             tx[q, 1] = mx - r * ux
             ty[q, 1] = my - r * uy
+        if cvx[0] == 0.0 and cvy[0] == 0.0 and cvx[1] == 0.0 and cvy[1] == 0.0 and cvx[2] == 0.0 and cvy[2] == 0.0:
+            continue  # a disk at rest changes no coverage
         reach2 = reach * reach
         out_r = r + reach
         in_r = r - reach
