@@ -9,9 +9,13 @@ Run: ``.venv/bin/python benchmarks/bench_sim.py [--quick] [--no-3d] [--frames-on
 ``boxes_3d`` (pyrender). Frames are off (pure event generation); each scene is
 run once briefly first so numba compilation and GL start-up are not counted.
 One process, numba on one thread. Section rows count samples, not events.
-Rows say the sampling (default: verified steps with ``lambda = 0.5``; ``geometric``: steps
-bounded by ``max_step_px`` only, for exact crossing times) and the crossing times (default exact;
-``linear``: ESIM's interpolation). Frames rows: ``shapes_translation`` rendered (not timed) at 1 kHz and 5 kHz
+Rows say the sampling (default on the analytic scenes: geometric steps, bounded by
+``max_step_px`` only, exact crossing times; on the shapes the pixels the renderer cannot prove
+monotone over a step are sub-sampled; ``verified``: steps verified by the lambda rule, the
+previous default of the shapes) and the crossing times (default exact; ``linear``: ESIM's
+interpolation). The default rows of ``stripes`` and ``shapes_translation`` at 240x180 are the
+best of 3 runs and also print their ratio to the target of issue 15 (3x real time on one core):
+``= 1.25x the 3 target`` (>= 1: met). Frames rows: ``shapes_translation`` rendered (not timed) at 1 kHz and 5 kHz
 into memory, then converted by :func:`evedge.sim.simulate_frames` (ESIM's
 algorithm, the scenes' pixel model): the frames path's speed without decoding, as the
 best of 3 runs and as a ratio to the 2.5 sim-s/s target; the same frames converted
@@ -24,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import math
 import os
 import sys
 import time
@@ -45,15 +50,24 @@ def _scene(name: str, sensor: str | None = None, **events):
     return parse_scene(data, source=f"{name}.toml")
 
 
-def _run(label: str, scene, duration_s: float) -> None:
+#: Issue 15's target for the analytic scenes at 240x180: simulated seconds per CPU second.
+TARGET_SIM_S_PER_S = 3.0
+
+
+def _run(label: str, scene, duration_s: float, target: bool = False) -> None:
     simulate(scene, duration_s=min(0.01, duration_s), frame_rate_hz=0, progress=False)  # warm-up
-    t0 = time.process_time()
-    rec = simulate(scene, duration_s=duration_s, frame_rate_hz=0, progress=False)
-    cpu = time.process_time() - t0
+    cpu = math.inf
+    for _ in range(3 if target else 1):  # target rows: the best of 3 (the machine is shared)
+        t0 = time.process_time()
+        rec = simulate(scene, duration_s=duration_s, frame_rate_hz=0, progress=False)
+        cpu = min(cpu, time.process_time() - t0)
     n = rec.events.shape[0]
+    speed = duration_s / cpu
+    goal = (f"  = {speed / TARGET_SIM_S_PER_S:4.2f}x the {TARGET_SIM_S_PER_S:g} target (best of 3)"
+            if target else "")
     print(f"{label:44s} {scene.sensor.width}x{scene.sensor.height}  sim {duration_s:5.2f} s in "
-          f"{cpu:6.2f} s CPU: {duration_s / cpu:6.3f} sim-s/s, {n / cpu / 1e6:6.3f} Mev/s "
-          f"({n:,} events, {rec.metadata['n_samples']} samples)", flush=True)
+          f"{cpu:6.2f} s CPU: {speed:6.3f} sim-s/s, {n / cpu / 1e6:6.3f} Mev/s "
+          f"({n:,} events, {rec.metadata['n_samples']} samples, {rec.metadata['sampling_used']}){goal}", flush=True)
 
 
 #: The frames path's speed target (simulated s per CPU s at 240x180; esim_py: 3.3 on the same frames).
@@ -182,14 +196,14 @@ def main() -> None:
     print(f"load average at the end {os.getloadavg()[0]:.1f}")
     if args.frames_only:
         return
-    _run("stripes (analytic, 50 + 125 px/s)", _scene("stripes", "davis240"), 0.8 * k)
-    _run("stripes, geometric sampling", _scene("stripes", "davis240", sampling="geometric"), 0.8 * k)
+    _run("stripes (analytic, 50 + 125 px/s)", _scene("stripes", "davis240"), 0.8 * k, target=True)
+    _run("stripes, verified steps", _scene("stripes", "davis240", sampling="verified"), 0.8 * k)
     _run("stripes, linear times (ESIM)", _scene("stripes", "davis240", crossing_times="linear"), 0.8 * k)
     _run("stripes (analytic, dvs128 as shipped)", _scene("stripes"), 0.8 * k)
-    _run("shapes_translation, geometric sampling", _scene("shapes_translation", sampling="geometric"), 2.0 * k)
-    _run("shapes_translation, lambda = 1", _scene("shapes_translation", **{"lambda": 1.0}), 2.0 * k)
+    _run("shapes_translation (analytic, full 2 s)", tr, 2.0 * k, target=True)
+    _run("shapes_translation, verified steps", _scene("shapes_translation", sampling="verified"), 2.0 * k)
     _run("shapes_translation, linear times (ESIM)", _scene("shapes_translation", crossing_times="linear"), 2.0 * k)
-    _run("shapes_translation (analytic, full 2 s)", tr, 2.0 * k)
+    _run("shapes_rotation (analytic, full 2 s)", _scene("shapes_rotation"), 2.0 * k)
     if not args.quick:
         _sections("shapes_translation", tr)
     if not args.no_3d:

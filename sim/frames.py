@@ -55,6 +55,8 @@ import numpy as np
 #: Image file suffixes read from a frames folder (sorted by name).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm")
 UPSAMPLING = ("log", "flow")
+#: Largest batch of images :meth:`FramesRenderer.samples` computes (decoded, resized, interpolated) in one call.
+_FILLED_BATCH_BYTES = 1 << 20
 
 
 class FramesError(ValueError):
@@ -617,8 +619,10 @@ class FramesRenderer:
         """The next samples after ``t_s`` in one array: ``(times_s, images)``, as :meth:`next_sample_s` and
         :meth:`intensity` give them one by one.
 
-        At most ``max_n`` samples; the last one is the first at or after
-        ``until_s`` (or the last frame). ``images`` is ``(n, H, W)`` float64:
+        At most ``max_n`` samples, and about 1 MB of them when the images are
+        computed here (read, resized, interpolated: the converter then scans
+        them while they are in the cache); the last one is the first at or
+        after ``until_s`` (or the last frame). ``images`` is ``(n, H, W)`` float64:
         a view of in-memory float64 frames when there is no upsampling,
         resizing or log input, else a buffer reused by the next call.
         """
@@ -626,6 +630,10 @@ class FramesRenderer:
         t = self.next_sample_s(t_s)
         k, j = self._next[1:]
         times, kj = [t], [(k, j)]
+        if not (self.upsample == 1 and not self.log_input and self.resize is None and self.source._block is not None):
+            # images computed here are scanned right after: a batch that stays in the cache (about 1 MB; a
+            # 16 MB batch was slower than frame by frame)
+            max_n = min(max_n, max(1, _FILLED_BATCH_BYTES // (8 * self.width * self.height)))
         while len(times) < max_n and t < until_s and k < last:
             # the successor of sample (k, j): the smallest sample time after t, as next_sample_s(t)
             while k < last:
@@ -647,7 +655,7 @@ class FramesRenderer:
             if view is not None:
                 return times, view
         if self._buf is None or self._buf.shape[0] < n:
-            self._buf = np.empty((max(n, int(max_n)), self.height, self.width))
+            self._buf = np.empty((n, self.height, self.width))
         for r, (tk, (k, j)) in enumerate(zip(times, kj)):
             self._next = (float(tk), k, j)
             self._buf[r] = self.intensity(float(tk))
