@@ -19,6 +19,7 @@ from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_sensor_size, validated
 from ._tiles import check_n_tiles
+from .buffer import EventBuffer
 from .edges import EdgeImage
 from .protocols import METHODS
 from .result import LIFETIME_DTYPE, empty_lifetimes
@@ -305,6 +306,8 @@ class Detector:
         self.use_buffer = self.filter_name is not None
         self.buffer = make_method(self.filter_name, self.sensor_size, buffer_params, kind="filter") \
             if self.filter_name else None
+        # the built-in buffer releases, in order, events it took as checked chunks: no check of its output
+        self._own_buffer = type(self.buffer) is EventBuffer
         self.estimator = make_method(method, self.sensor_size, params, kind="estimator")
         self.edges = EdgeImage(self.sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
 
@@ -330,19 +333,19 @@ class Detector:
             return self._run(events, checked=True)
         with validated(events, self.sensor_size):
             released = self.buffer.process(events)
-        return self._run(released)
+        return self._run(released, self._own_buffer)
 
     def advance_to(self, t_us: int):
         """No event before ``t_us`` will come: release what the filter has decided; ``(events, lifetimes)``."""
         if self.buffer is None or not hasattr(self.buffer, "advance_to"):
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
-        return self._run(self.buffer.advance_to(t_us))
+        return self._run(self.buffer.advance_to(t_us), self._own_buffer)
 
     def flush(self):
         """End of stream: release what the filter still holds; ``(events, lifetimes)``."""
         if self.buffer is None:
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
-        return self._run(self.buffer.flush())
+        return self._run(self.buffer.flush(), self._own_buffer)
 
     def image_at(self, t_us) -> np.ndarray:
         """Edge map at ``t_us`` (see :meth:`EdgeImage.image_at`)."""

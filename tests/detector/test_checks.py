@@ -115,14 +115,29 @@ def test_edge_frames_checks_once(count):
     assert count == [2000]
 
 
-def test_streaming_detector_checks_each_chunk_and_each_release_once(count):
+def test_streaming_detector_checks_each_chunk_once(count):
     ev = _events(3000)
     det = Detector(SIZE)
-    for c in np.array_split(ev, 6):
-        det.process(c)
-    det.flush()
-    # per chunk: the chunk, and the filter's released events (a new array) once for the estimator and the image
-    assert len(count) == 6 * 2 + 1
+    out = [det.process(c)[0] for c in np.array_split(ev, 6)] + [det.flush()[0]]
+    # the chunks only: the built-in buffer releases checked events, the estimator and the image trust them
+    assert count == [500] * 6
+    assert all(o.flags.writeable for o in out)
+
+
+def test_streaming_detector_checks_a_third_party_filters_output_once(count):
+    from evedge.detector.buffer import EventBuffer
+    from evedge.detector.protocols import METHODS
+
+    class Other(EventBuffer):  # not the built-in class: its output is checked
+        pass
+
+    name = "tests.other_buffer"
+    if name not in METHODS:
+        METHODS.register(name, lambda size, **kw: Other(size), kind="filter", source="test")
+    ev = _events(3000)
+    det = Detector(SIZE, filter=name)
+    released = [det.process(c)[0].size for c in np.array_split(ev, 6)]
+    assert count == [x for r in released for x in (500, r)]  # each chunk, then what it released
 
 
 def test_a_stage_that_writes_into_its_input_fails_loudly():
