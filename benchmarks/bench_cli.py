@@ -42,6 +42,7 @@ from evedge.events import Recording  # noqa: E402
 from evedge.io.hdf5 import write_recording  # noqa: E402
 
 EVEDGE = Path(sys.executable).with_name("evedge")
+_RUNS = 0
 
 
 def repeated(events, copies):
@@ -60,6 +61,9 @@ def run_cli(src: Path, out: Path, *extra, env=None):
     Through ``/usr/bin/time``: a child forked from this (large) process would count
     this process's pages in its own peak RSS.
     """
+    global _RUNS
+    _RUNS += 1
+    out = out.with_name(f"{out.name}_{_RUNS}")  # a fresh folder each run (evedge detect refuses an existing one)
     w0 = time.perf_counter()
     proc = subprocess.run(["/usr/bin/time", "-f", "%e %U %S %M", str(EVEDGE), "detect", str(src), "-o", str(out),
                            "--quiet", *extra], env=env, capture_output=True, text=True)
