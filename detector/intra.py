@@ -235,7 +235,7 @@ import numpy as np
 from evedge._validate import check_bool, check_positive
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _fit_windows, _intra_stream, scratch_arrays
+from ._intra_kernels import _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
 from .protocols import METHODS
@@ -455,8 +455,8 @@ class IntraPixelLifetime:
         w, h = self.sensor_size.width, self.sensor_size.height
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
-                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
-                pr.burst_startup, pr.border_px)
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
+                off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px)  # options off: not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -573,7 +573,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 params.split_gap_ratio, params.event_on_plane)
+                 off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane))
     return a, b, ok, inl.reshape(k, side, side)
 
 
