@@ -232,7 +232,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evedge._validate import check_bool, check_positive
+from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream, off_as_none, scratch_arrays
@@ -314,6 +314,19 @@ class IntraParams:
         clipped, get no estimate (their fit still sets their pixel's burst
         state); Mueggler et al.'s code skips 2 px. Default 0 (the paper says
         nothing). See the module notes ("border").
+    split_jump_check : bool
+        With ``split_gap_ratio > 0``: no estimate when the largest time gap the
+        linkage cluster took was forced (taken only because the cluster fixed no
+        plane yet) and is more than ``split_gap_ratio`` times every other gap it
+        took: a jump to a stale level, not a step of the edge's ramp (default
+        False, as before). See the module notes ("stale levels").
+    stale_fraction : float
+        In [0, 1). Above 0, an event that starts a burst ignores the window's
+        times older than ``stale_fraction`` of the interval since its pixel's
+        previous event of the same polarity (an earlier passage: the same edge
+        cannot pass the pixel twice in between); 0.5 is the midpoint. Default 0
+        (the paper: every time is a point). Streaming only (a hand-made window
+        of :func:`fit_window` has no history). See the module notes ("stale levels").
     """
 
     window_size: int = 5
@@ -333,6 +346,8 @@ class IntraParams:
     event_on_plane: float = 0.0
     burst_startup: bool = True
     border_px: int = 0
+    split_jump_check: bool = False
+    stale_fraction: float = 0.0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -359,20 +374,22 @@ class IntraParams:
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
         check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "event_on_plane", self.event_on_plane, allow_zero=True)
+        check_real(own, "stale_fraction", self.stale_fraction, 0.0, 1.0, low_open=False, high_open=True)
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
             check_bool(own, name, getattr(self, name))
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
-                     "split_gap_ratio", "event_on_plane"):
+                     "split_gap_ratio", "event_on_plane", "stale_fraction"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
-ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True}
+ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
+          "stale_fraction": 0.5}
 
 
 def robust_params(**overrides) -> IntraParams:
@@ -456,7 +473,8 @@ class IntraPixelLifetime:
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
                 pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
-                off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px)  # options off: not compiled
+                off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
+                pr.stale_fraction)  # options off as None: not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -573,7 +591,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane))
+                 off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane), params.split_jump_check)
     return a, b, ok, inl.reshape(k, side, side)
 
 
