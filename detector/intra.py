@@ -237,7 +237,7 @@ from evedge._validate import check_bool, check_positive, check_real
 from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._tiles import check_n_tiles, intra_tiled
-from .result import empty_lifetimes
+from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
@@ -460,9 +460,9 @@ class IntraPixelLifetime:
         events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
-        out = empty_lifetimes(n)
         if n == 0:
-            return out
+            return empty_lifetimes(0)
+        out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
         x, y, t, p = columns(events)
         lt = np.empty(n)
         vx = np.empty(n)
