@@ -54,7 +54,8 @@ def validated(events: np.ndarray, sensor_size: SensorSize):
     stays honest: ``events`` is made read-only for the block (and writeable
     again after it, if it was), so nothing can change it between the check and
     the stages that rely on it; a stage that tries gets numpy's "read-only"
-    error. Thread-local: another thread's checks are not affected.
+    error. Thread-local: another thread's checks are not affected (blocks of two
+    threads on the same array: the first to close makes it writeable again).
 
     Examples
     --------
