@@ -526,7 +526,7 @@ def _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, delta, thr_us, thr_
 
 
 def off_as_none(value: float):
-    """An option of the kernels at 0 (off) as None, so that numba compiles none of its code (see :func:`_fit_points`)."""
+    """An option of the kernels at 0 (off) as None: numba then compiles none of its code (:func:`_fit_points`)."""
     return None if value == 0.0 else value
 
 
