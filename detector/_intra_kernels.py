@@ -554,6 +554,21 @@ def _stale_cutoff(tk, prev, prev_lt, frac, half):
 
 
 @njit(cache=True)
+def _history_short(tk, a, b, reach_px, t_start):
+    """Whether the plane ``dt = a dx + b dy`` through ``(0, 0, tk)`` reaches before ``t_start``.
+
+    ``reach_px`` is ``startup_reach`` times the window's half-size: the oldest
+    window cell of the plane is ``half (|a| + |b|)`` before ``tk``. When that is
+    before the stream's first event (``t_start``; ``_NEVER`` = no start-up
+    rule) the pixels there could not hold the plane's times yet (they never
+    fired, or fired at the start with whatever phase the edge had reached), and
+    the fit rests on a truncated history: on the simulated scenes such estimates
+    are short by 30-80 %, so the reach of the (short) estimate itself is scaled.
+    """
+    return float(tk) - reach_px * (abs(a) + abs(b)) < float(t_start)
+
+
+@njit(cache=True)
 def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
     """The window points around pixel ``(xk, yk)`` of the SAE plane at ``base``, relative to time ``tk``.
 
@@ -582,8 +597,8 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 @njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac, out_lt,
-                  out_vx, out_vy, out_valid, wf, wi):
+                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
+                  t_start, reach_px, out_lt, out_vx, out_vy, out_valid, wf, wi):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -627,7 +642,13 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
     Border rule (``border > 0``): an event closer than ``border`` px to the sensor
     edge (its window is clipped) is reported without estimate; its fit still
-    sets the burst state of its pixel, as any other event's.
+    sets the burst state of its pixel, as any other event's. The start-up rule
+    (``t_start``, the stream's first event time; ``_NEVER`` = off) does the same
+    for a fit whose plane reaches before ``t_start`` in the window
+    (:func:`_history_short`).
+
+    Stale cutoff (``stale_frac > 0``): an event that starts a burst ignores the
+    window times older than :func:`_stale_cutoff`.
     """
     log_fail = _log_fail(stop_prob)
     publish = dec.shape[0] > 0
@@ -689,7 +710,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         if publish:
             if y[k] < own_lo + half or y[k] >= own_hi - half:  # only neighbours' halos read it
                 _store_release(dec, k, 2 if cont else 1)
-        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border):
+        # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
+        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border
+                   or _history_short(tk, a, b, reach_px, t_start)):
             out_lt[j] = math.sqrt(a * a + b * b)
             out_vx[j] = np.nan
             out_vy[j] = np.nan

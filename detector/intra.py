@@ -235,7 +235,7 @@ import numpy as np
 from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _fit_windows, _intra_stream, off_as_none, scratch_arrays
+from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._tiles import check_n_tiles, intra_tiled
 from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
@@ -327,6 +327,13 @@ class IntraParams:
         cannot pass the pixel twice in between); 0.5 is the midpoint. Default 0
         (the paper: every time is a point). Streaming only (a hand-made window
         of :func:`fit_window` has no history). See the module notes ("stale levels").
+    startup_reach : float
+        >= 0. Above 0, no estimate while the window's history is too short: when
+        ``startup_reach`` times the fitted plane's reach in the window (its oldest
+        cell is ``half (|a| + |b|)`` before the event) goes back before the first
+        event the estimator was given since its last reset (the fit still sets
+        the pixel's burst state, as with ``border_px``). Default 0 (the paper).
+        Streaming only. See the module notes ("start-up").
     """
 
     window_size: int = 5
@@ -348,6 +355,7 @@ class IntraParams:
     border_px: int = 0
     split_jump_check: bool = False
     stale_fraction: float = 0.0
+    startup_reach: float = 0.0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -374,6 +382,7 @@ class IntraParams:
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
         check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "event_on_plane", self.event_on_plane, allow_zero=True)
+        check_positive(own, "startup_reach", self.startup_reach, allow_zero=True)
         check_real(own, "stale_fraction", self.stale_fraction, 0.0, 1.0, low_open=False, high_open=True)
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
@@ -383,13 +392,13 @@ class IntraParams:
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
-                     "split_gap_ratio", "event_on_plane", "stale_fraction"):
+                     "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
 ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
-          "stale_fraction": 0.5}
+          "stale_fraction": 0.5, "startup_reach": 1.0}
 
 
 def robust_params(**overrides) -> IntraParams:
@@ -454,6 +463,7 @@ class IntraPixelLifetime:
         self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
         self._n_seen = 0
         self._last_time: int | None = None
+        self._t_start: int | None = None  # the first event's time (start-up rule)
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
@@ -470,11 +480,14 @@ class IntraPixelLifetime:
         valid = np.empty(n, dtype=bool)
         pr = self.params
         w, h = self.sensor_size.width, self.sensor_size.height
+        if self._t_start is None:
+            self._t_start = int(t[0])
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
                 pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
                 off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
-                pr.stale_fraction)  # options off as None: not compiled
+                pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
+                pr.startup_reach * (pr.window_size // 2))  # options off as None: not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]

@@ -187,6 +187,7 @@ def ref_stream(events, size, p: IntraParams):
     half = p.window_size // 2
     out = []
     burst = p.burst_lifetimes
+    t_start = int(events[0]["t"]) if len(events) else 0
     for g, e in enumerate(events):
         x, y, t_ev, pol = int(e["x"]), int(e["y"]), int(e["t"]), bool(e["p"])
         plane = pol if p.per_polarity else 0
@@ -230,6 +231,9 @@ def ref_stream(events, size, p: IntraParams):
         lt = math.sqrt(a * a + b * b) if ok else math.nan
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
+        t_fit = sae[key]  # the burst's first time (or the event's own)
+        if ok and p.startup_reach > 0 and t_fit - p.startup_reach * half * (abs(a) + abs(b)) < t_start:
+            inside = False  # start-up rule: the plane reaches before the first event; reported as no estimate
         if ok and inside:
             g2 = a * a + b * b
             out.append((lt, a / g2 * 1e6, b / g2 * 1e6, True))
@@ -313,7 +317,8 @@ def test_two_means_reference_properties():
 
 
 @pytest.mark.parametrize("per_polarity", [True, False])
-@pytest.mark.parametrize("rules", [{}, {"split_gap_ratio": 3.0, "split_jump_check": True, "stale_fraction": 0.5}])
+@pytest.mark.parametrize("rules", [{}, {"split_gap_ratio": 3.0, "split_jump_check": True, "stale_fraction": 0.5,
+                                         "startup_reach": 1.0}])
 def test_stream_matches_reference(random_events, per_polarity, rules):
     size = SensorSize(9, 7)
     ev = random_events(400, size.width, size.height, duration_us=30_000, rng=3)
@@ -766,6 +771,30 @@ def test_stale_cutoff_known_values():
     assert _stale_cutoff(100_000, 80_000, 1000.0, 0.25, 2) == 95_000
     assert _stale_cutoff(100_000, 80_000, 2500.0, 0.5, 2) == _NEVER  # 10000 <= 2 * 2 * 2500
     assert _stale_cutoff(100_000, 80_000, 1000.0, 0.0, 2) == _NEVER  # off
+
+
+def test_startup_reach_no_estimate_while_the_history_is_too_short():
+    """An edge (lifetime 1000 us, 14 columns) starting at t = 0: the plane of an event at column x reaches
+    ``half * |a| = 2000 us`` back, before the first event while ``x * 1000 < reach * 2000``. Those events
+    get no estimate, every later one keeps exactly the estimate it had without the rule; chunked = one-shot
+    (the start is the first event since the reset), and the reference agrees."""
+    size = SensorSize(14, 14)
+    ev = _passages(n=1)
+    plain = estimate_lifetimes(ev, size, IntraParams())
+    for reach in (1.0, 2.0):
+        p = IntraParams(startup_reach=reach)
+        got = estimate_lifetimes(ev, size, p)
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+        early = ev["t"] - reach * 2 * plain["lifetime_us"] < ev["t"][0]  # the plane's reach, from the plain fit
+        assert not got["valid"][early & plain["valid"]].any()
+        late = ~early & plain["valid"]
+        assert late.sum() > 0.3 * ev.size
+        assert got[late].tobytes() == plain[late].tobytes()
+        est = IntraPixelLifetime(size, p)
+        chunked = np.concatenate([est.process(c) for c in np.array_split(ev, 5)])
+        assert chunked.tobytes() == got.tobytes()
+        est.reset()
+        assert est.process(ev[ev["t"] >= 5000]).tobytes() != got[ev["t"] >= 5000].tobytes()  # a new start
 
 
 def test_scratch_arrays_in_numpy_equal_the_kernels():
