@@ -293,9 +293,9 @@ import numpy as np
 from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, _scratch
+from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._tiles import check_n_tiles, intra_tiled
-from .result import empty_lifetimes
+from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
@@ -510,6 +510,7 @@ class IntraPixelLifetime:
         self.params = _check_params(params)
         self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
+        self._scratch = scratch_arrays(self.params.window_size**2)  # the serial kernel's, reused by every chunk
         self.reset()
 
     def reset(self) -> None:
@@ -527,9 +528,9 @@ class IntraPixelLifetime:
         events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
-        out = empty_lifetimes(n)
         if n == 0:
-            return out
+            return empty_lifetimes(0)
+        out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
         x, y, t, p = columns(events)
         lt = np.empty(n)
         vx = np.empty(n)
@@ -541,15 +542,16 @@ class IntraPixelLifetime:
             self._t_start = int(t[0])
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
-                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
-                pr.burst_startup, pr.border_px, pr.split_jump_check, pr.stale_fraction,
-                self._t_start if pr.startup_reach > 0 else _NEVER, pr.startup_reach * (pr.window_size // 2))
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
+                off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
+                pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
+                pr.startup_reach * (pr.window_size // 2))  # options off as None: not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
                           self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
-                          lt, vx, vy, valid, *_scratch(pr.window_size**2))
+                          lt, vx, vy, valid, *self._scratch)
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
@@ -660,7 +662,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 params.split_gap_ratio, params.event_on_plane, params.split_jump_check)
+                 off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane), params.split_jump_check)
     return a, b, ok, inl.reshape(k, side, side)
 
 

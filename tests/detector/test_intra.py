@@ -795,3 +795,12 @@ def test_startup_reach_no_estimate_while_the_history_is_too_short():
         assert chunked.tobytes() == got.tobytes()
         est.reset()
         assert est.process(ev[ev["t"] >= 5000]).tobytes() != got[ev["t"] >= 5000].tobytes()  # a new start
+
+
+def test_scratch_arrays_in_numpy_equal_the_kernels():
+    """The serial estimator's scratch arrays (numpy, no compilation) have the bytes of the strips' (numba)."""
+    from evedge.detector._intra_kernels import _scratch, scratch_arrays
+
+    for nn in (9, 25, 49, 121, 169):
+        for a, b in zip(scratch_arrays(nn), _scratch(nn)):
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
