@@ -30,10 +30,10 @@ def _near(qcnt, r, xk, plane, rows, width, half):
 
 @njit(cache=True)
 def _schedule(x, y, p, prev_same, needs_own, idx, starts, lo, own_lo, own_hi, rows, width, half, per_pol, cap,
-              halo_cost):
+              halo_cost, start):
     n_tiles = lo.shape[0]
     pub = np.full(x.shape[0], np.inf)  # when each owned event's decision is published
-    clock = np.zeros(n_tiles)
+    clock = start.copy()
     cursor = np.zeros(n_tiles, np.int64)
     head = np.zeros(n_tiles, np.int64)
     tail = np.zeros(n_tiles, np.int64)
@@ -124,13 +124,15 @@ def _schedule(x, y, p, prev_same, needs_own, idx, starts, lo, own_lo, own_hi, ro
 
 
 def simulate_strips(events, sensor_size, n_tiles: int, half: int = 2, per_polarity: bool = True,
-                    needs_own: np.ndarray | None = None, halo_cost: float = 0.05, queue_max: int = _QUEUE_MAX):
+                    needs_own: np.ndarray | None = None, halo_cost: float = 0.05, queue_max: int = _QUEUE_MAX,
+                    late: float = 0.0):
     """Simulated makespan of ``n_tiles`` strips on as many idle workers; returns ``(speedup, busy)``.
 
     ``needs_own`` (bool per event): events whose halo replay needs the owner's own
     decision (the start-up rule's trial: the pixel's previous event, same
     polarity, had no estimate); by default none. ``busy`` is the share of the
-    workers' time not spent waiting.
+    workers' time not spent waiting. ``late``: the odd-numbered workers start that
+    many units late (a thread woken late, or descheduled at the start).
     """
     x = events["x"].astype(np.int64)
     y = events["y"].astype(np.int64)
@@ -150,6 +152,6 @@ def simulate_strips(events, sensor_size, n_tiles: int, half: int = 2, per_polari
     idx, starts = _strip_index(y, lo, hi)
     clock, waited = _schedule(x, y, p, prev_same, np.asarray(needs_own, bool), idx, starts, lo, own[:, 0].copy(),
                               own[:, 1].copy(), hi - lo, width, half, per_polarity, min(queue_max, x.size),
-                              halo_cost)
+                              halo_cost, np.where(np.arange(n_tiles) % 2 == 1, float(late), 0.0))
     makespan = clock.max()
-    return x.size / makespan, 1.0 - waited.sum() / (n_tiles * makespan)
+    return x.size / makespan, 1.0 - (waited.sum() + late * (n_tiles // 2)) / (n_tiles * makespan)

@@ -11,27 +11,36 @@ Event buffer (radius 1)
 Intra-pixel estimator (window radius ``h``)
     An owned event's window reads the SAE up to ``h`` rows outside the strip
     (the halo). An SAE value there is written by a halo event, and whether
-    that event kept its pixel's burst time depends on the lifetime estimated
-    for the pixel's previous event, whose window reaches ``2 h`` rows out, and
-    so on: the dependence has no finite radius, so no fixed halo is enough by
-    itself. Instead the strip that owns an event publishes its burst decision
-    (new burst / continues the burst; an atomic int8 per event), and the
-    strips whose halo holds the event replay it with that decision (the SAE
-    update only, no fit), waiting for it when it is not published yet. By
-    induction over time the SAE every owned event reads is the serial one, so
-    every strip gives exactly the serial result (:func:`intra_tiled`). No
-    strip waits forever: the one holding the earliest unprocessed event needs
-    only decisions of earlier events, already taken.
+    that event kept its pixel's burst time depends on the lifetime kept for
+    the pixel's previous event, whose window reaches ``2 h`` rows out, and so
+    on: the dependence has no finite radius, so no fixed halo is enough by
+    itself. Instead the strip that owns an event near its edges publishes the
+    lifetime it keeps for the event's pixel (and its burst decision), and the
+    strips whose halo holds the pixel replay its events with the same burst
+    rule (SAE and burst state, no fit, :func:`_halo_event`): a halo event
+    needs only the lifetime of its pixel's *previous* event, one same-pixel
+    gap older (the start-up rule's trial, after an event without estimate,
+    needs the owner's decision of the event itself). An event that cannot run
+    yet is deferred, and so is every later event within the window radius of
+    a deferred one; the others run ahead, out of time order, because events
+    farther apart read and write disjoint state (:func:`_run_strip`). By
+    induction every event runs after all earlier events of its window, with
+    the serial SAE and burst state: every strip gives exactly the serial
+    result (:func:`intra_tiled`). No strip waits forever: the earliest event
+    not yet run anywhere is always ready.
 
 Random draws are keyed by the event's global index, so they do not depend on
-the strip either. Strips are as even as possible in rows. The buffer's strips
-run one per ``prange`` iteration; the estimator's are shared by numba's
-threads (:func:`_intra_parallel`): a worker runs any free strip until it needs
-a decision not yet published, then moves to another. Several narrow strips per
-thread keep the threads busy when the events move across the sensor: with 2
-row strips, an edge sweeping the rows of ``stripes.mat`` feeds one strip at a
-time (at most 1.49x on 2 threads, from the events per strip per ms); with 8
-strips shared by 2 threads, at most 1.84x (shapes_translation: 1.86 / 1.81x).
+the strip either. The buffer's strips are as even as possible in rows, one per
+``prange`` iteration. The estimator's strips are cut at the quantiles of the
+events' rows (:func:`balanced_strips`: about as many events each) and shared by
+numba's threads (:func:`_intra_parallel`): a worker runs any free strip until
+nothing in it can run, then moves to another.
+
+Speed (``benchmarks/bench_detector.py --tiles 2``): the simulated schedule of
+these rules on idle workers (``benchmarks/_strip_schedule.py``, one unit per
+fit) gives 1.91x on ``stripes.mat`` and 2.00x on shapes_translation with 2
+strips, 7.1x / 6.1x with 8; the strips' extra CPU per event (halo replays,
+deferral checks) is measured beside it.
 """
 
 from __future__ import annotations
