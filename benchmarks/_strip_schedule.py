@@ -46,6 +46,7 @@ def _schedule(x, y, p, prev_same, needs_own, idx, starts, lo, own_lo, own_hi, ro
     qcnt = np.zeros(qoff[-1], np.int32)
     fin = np.zeros(n_tiles, np.bool_)
     waited = np.zeros(n_tiles)
+    deferred = 0
     left = n_tiles
     while left > 0:
         s = -1
@@ -98,6 +99,7 @@ def _schedule(x, y, p, prev_same, needs_own, idx, starts, lo, own_lo, own_hi, ro
                 qc[(pl * rows[s] + r) * width + x[k]] += 1
                 cursor[s] += 1
                 clock[s] += halo_cost
+                deferred += 1
                 acted = True
             elif not later:
                 clock[s] += 1.0 if own else halo_cost
@@ -120,18 +122,19 @@ def _schedule(x, y, p, prev_same, needs_own, idx, starts, lo, own_lo, own_hi, ro
                 target = clock[s] + halo_cost
             waited[s] += target - clock[s]
             clock[s] = target
-    return clock, waited
+    return clock, waited, deferred
 
 
 def simulate_strips(events, sensor_size, n_tiles: int, half: int = 2, per_polarity: bool = True,
-                    needs_own: np.ndarray | None = None, halo_cost: float = 0.05, queue_max: int = _QUEUE_MAX,
+                    valid: np.ndarray | None = None, halo_cost: float = 0.05, queue_max: int = _QUEUE_MAX,
                     late: float = 0.0):
-    """Simulated makespan of ``n_tiles`` strips on as many idle workers; returns ``(speedup, busy)``.
+    """Simulated makespan of ``n_tiles`` strips on as many idle workers; returns ``(speedup, busy, deferred)``.
 
-    ``needs_own`` (bool per event): events whose halo replay needs the owner's own
-    decision (the start-up rule's trial: the pixel's previous event, same
-    polarity, had no estimate); by default none. ``busy`` is the share of the
-    workers' time not spent waiting. ``late``: the odd-numbered workers start that
+    ``valid`` (bool per event, the serial estimator's): a halo replay after an
+    event without estimate at its pixel waits for the owner's own decision (the
+    start-up rule's trial); without it, no replay does. ``busy`` is the share of the
+    workers' time not spent waiting, ``deferred`` the share of the events
+    deferred. ``late``: the odd-numbered workers start that
     many units late (a thread woken late, or descheduled at the start).
     """
     x = events["x"].astype(np.int64)
@@ -144,14 +147,18 @@ def simulate_strips(events, sensor_size, n_tiles: int, half: int = 2, per_polari
     prev_same = np.full(x.size, -1, np.int64)
     same = cell[order[1:]] == cell[order[:-1]]
     prev_same[order[1:][same]] = order[:-1][same]
-    if needs_own is None:
-        needs_own = np.zeros(x.size, bool)
+    # the start-up rule's trial (about): the pixel's previous event (same plane) had no estimate
+    needs_own = np.zeros(x.size, bool)
+    if valid is not None:
+        needs_own = (prev_same >= 0) & ~np.asarray(valid, bool)[np.maximum(prev_same, 0)]
     own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - half, 0)
     hi = np.minimum(own[:, 1] + half, height)
     idx, starts = _strip_index(y, lo, hi)
-    clock, waited = _schedule(x, y, p, prev_same, np.asarray(needs_own, bool), idx, starts, lo, own[:, 0].copy(),
-                              own[:, 1].copy(), hi - lo, width, half, per_polarity, min(queue_max, x.size),
-                              halo_cost, np.where(np.arange(n_tiles) % 2 == 1, float(late), 0.0))
+    clock, waited, deferred = _schedule(x, y, p, prev_same, needs_own, idx, starts, lo,
+                                        own[:, 0].copy(), own[:, 1].copy(), hi - lo, width, half, per_polarity,
+                                        min(queue_max, x.size), halo_cost,
+                                        np.where(np.arange(n_tiles) % 2 == 1, float(late), 0.0))
     makespan = clock.max()
-    return x.size / makespan, 1.0 - (waited.sum() + late * (n_tiles // 2)) / (n_tiles * makespan)
+    busy = 1.0 - (waited.sum() + late * (n_tiles // 2)) / (n_tiles * makespan)
+    return x.size / makespan, busy, deferred / max(x.size, 1)

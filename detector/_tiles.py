@@ -30,9 +30,9 @@ Intra-pixel estimator (window radius ``h``)
     not yet run anywhere is always ready.
 
 Random draws are keyed by the event's global index, so they do not depend on
-the strip either. The buffer's strips are as even as possible in rows, one per
-``prange`` iteration. The estimator's strips are cut at the quantiles of the
-events' rows (:func:`balanced_strips`: about as many events each) and shared by
+the strip either. Both cut the rows at the quantiles of the events' rows
+(:func:`balanced_strips`: about as many events each). The buffer runs one strip
+per ``prange`` iteration; the estimator's strips are shared by
 numba's threads (:func:`_intra_parallel`): a worker runs any free strip until
 nothing in it can run, then moves to another.
 
@@ -56,7 +56,6 @@ from ._buffer_kernels import _buffer_scan, new_state
 from ._intra_kernels import _intra_stream, _scratch
 
 
-
 def check_n_tiles(n_tiles, height: int) -> int:
     """``n_tiles`` as an int in ``[1, height]`` (a clear error otherwise)."""
     if isinstance(n_tiles, bool) or not isinstance(n_tiles, (int, np.integer)):
@@ -70,6 +69,24 @@ def strips(height: int, n_tiles: int) -> np.ndarray:
     """Owned rows of each strip: ``(n_tiles, 2)`` int64 ``[lo, hi)``, as even as possible."""
     edges = (np.arange(n_tiles + 1) * height) // n_tiles
     return np.stack([edges[:-1], edges[1:]], axis=1).astype(np.int64)
+
+
+def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
+    """Owned rows of each strip, ``(n_tiles, 2)`` int64 ``[lo, hi)``: about as many events each.
+
+    Cuts at the quantiles of the events' rows (each strip keeps at least one
+    row); where the strips are cut changes no result, only how evenly the work
+    is shared.
+    """
+    counts = np.bincount(np.asarray(y, np.int64), minlength=height)[:height]
+    cum = np.cumsum(counts)
+    edges = np.zeros(n_tiles + 1, np.int64)
+    edges[-1] = height
+    total = cum[-1] if cum.size else 0
+    for i in range(1, n_tiles):
+        c = int(np.searchsorted(cum, total * i / n_tiles, side="left")) + 1 if total else (height * i) // n_tiles
+        edges[i] = min(max(c, edges[i - 1] + 1), height - (n_tiles - i))
+    return np.stack([edges[:-1], edges[1:]], axis=1)
 
 
 # ---------------------------------------------------------------- event buffer
@@ -100,8 +117,11 @@ def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_
 
 
 def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool, n_tiles: int) -> np.ndarray:
-    """The event buffer's decisions over ``n_tiles`` strips in parallel (halo one row): the serial ones."""
-    own = strips(height, n_tiles)
+    """The event buffer's decisions over ``n_tiles`` strips in parallel (halo one row): the serial ones.
+
+    The strips are cut where they hold about as many events (:func:`balanced_strips`).
+    """
+    own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - 1, 0)
     hi = np.minimum(own[:, 1] + 1, height)
     idx, starts = _strip_index(y, lo, hi)
@@ -122,29 +142,14 @@ _TURN_EVENTS = 2048
 #: ``clock_gettime``'s clock of the calling thread's CPU time (Linux).
 _THREAD_CPU = 3
 
-#: Deferred events a strip may hold (beyond that it waits).
+#: Deferred events a strip may hold (beyond that it waits); rounded up to a power of two.
 _QUEUE_MAX = 4096
 
-
-def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
-    """Owned rows of each strip, ``(n_tiles, 2)`` int64 ``[lo, hi)``: about as many events each.
-
-    Cuts at the quantiles of the events' rows (each strip keeps at least one
-    row); where the strips are cut changes no result, only how evenly the work
-    is shared.
-    """
-    counts = np.bincount(np.asarray(y, np.int64), minlength=height)[:height]
-    cum = np.cumsum(counts)
-    edges = np.zeros(n_tiles + 1, np.int64)
-    edges[-1] = height
-    total = cum[-1] if cum.size else 0
-    for i in range(1, n_tiles):
-        c = int(np.searchsorted(cum, total * i / n_tiles, side="left")) + 1 if total else (height * i) // n_tiles
-        edges[i] = min(max(c, edges[i - 1] + 1), height - (n_tiles - i))
-    return np.stack([edges[:-1], edges[1:]], axis=1)
+#: Events run before a strip looks again at a queue front that was not ready.
+_RECHECK_EVENTS = 8
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _queued_near(qrow, qcnt, prow, r, xk, rows, width, half):
     """Whether a deferred event of the plane whose rows start at ``prow`` lies within ``half`` px of ``(r, xk)``."""
     for rr in range(max(r - half, 0), min(r + half, rows - 1) + 1):
@@ -156,37 +161,48 @@ def _queued_near(qrow, qcnt, prow, r, xk, rows, width, half):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _halo_event(k, si, tk, pk, sae, prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, apply):
     """Replay halo event ``k`` at local pixel ``si`` (SAE and burst state, no fit); False when it cannot be yet.
 
-    Its burst decision follows from its pixel's state with the rule of
-    :func:`_intra_stream` (same expressions), once the lifetime its owner kept
-    for the pixel's previous event is known: ``prev_lt`` of a halo pixel holds
-    ``-(k' + 1)`` after a replayed event ``k'`` (lifetimes are positive or NaN)
-    until ``dec_lt[k']`` is published. Only the start-up rule's trial (the
-    previous event without estimate) needs the owner's own decision
-    ``dec[k]``. So a halo event waits for an event at least one same-pixel
+    When the owner has published the event, its decision and kept lifetime are
+    taken as they are. Otherwise the decision follows from the pixel's state
+    with the burst rule of :func:`_intra_stream` (same expressions), once the
+    lifetime its owner kept for the pixel's previous event is known: ``prev_lt``
+    of a halo pixel holds ``-(k' + 1)`` after a replayed event ``k'`` (lifetimes
+    are positive or NaN) until ``dec_lt[k']`` is published. The start-up rule's
+    trial (the previous event without estimate) needs the owner's decision of
+    the event itself. So a halo event mostly waits for an event one same-pixel
     gap older, not for its own copy. With ``apply`` False, only whether it can.
+    A rule added to the burst decision in :func:`_intra_stream` must be added
+    here too (``tests/detector/test_tiles.py`` fails otherwise); a rule that
+    makes owned events read their neighbours' ``prev_lt`` must wait for the
+    owner's value instead (return False while ``dec[k]`` is 0).
     """
-    lt = prev_lt[si]
-    if lt < 0.0:
-        kp = np.int64(-lt) - 1
-        if _load_acquire(dec, kp) == 0:
-            return False
-        lt = dec_lt[kp]
-    cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * lt
-    if startup and burst > 0.0 and not cont and prev_pol[si] == pk and math.isnan(lt):
-        d = _load_acquire(dec, k)
-        if d == 0:
-            return False
+    d = _load_acquire(dec, k)
+    if d != 0:
         cont = d == 2
+        lt_after = dec_lt[k]
+    elif burst <= 0.0:
+        cont = False  # no burst grouping: every event takes its pixel's time; no rule reads a halo's prev_lt
+        lt_after = np.nan
+    else:
+        lt = prev_lt[si]
+        if lt < 0.0:
+            kp = np.int64(-lt) - 1
+            if _load_acquire(dec, kp) == 0:
+                return False
+            lt = dec_lt[kp]
+        cont = prev_pol[si] == pk and tk - prev_t[si] <= burst * lt
+        if startup and not cont and prev_pol[si] == pk and math.isnan(lt):
+            return False  # the trial's fit decides: the owner's
+        lt_after = -np.float64(k + 1)
     if apply:
         if not cont:
             sae[si] = tk
         prev_t[si] = tk
         prev_pol[si] = pk
-        prev_lt[si] = -np.float64(k + 1)
+        prev_lt[si] = lt_after
     return True
 
 
@@ -235,7 +251,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     half = kargs[2]
     startup = kargs[15]
     n = seg.shape[0]
-    cap = queue.shape[0]
+    mask = queue.shape[0] - 1  # a power of two
     nb = bpos.shape[0]
     cur = st[0]
     head = st[1]
@@ -244,18 +260,22 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     m = 0  # events in the batch
     near_lo = 0  # of which within half rows of the strip's first / last owned row
     near_hi = 0
+    recheck = 0
     while done < budget:
         jp = -1
-        if head < tail:  # the queue's front, when ready
-            k = seg[queue[head % cap]]
+        looked = head < tail and done >= recheck
+        if looked:  # the queue's front, when ready
+            k = seg[queue[head & mask]]
             pr = ((1 if p[k] else 0) if per_pol else 0) * rows + y[k] - row0
             if own_lo <= y[k] < own_hi or _halo_event(k, pr * width + x[k], t[k], np.int8(1 if p[k] else 0), sae,
                                                       prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup,
                                                       False):
-                jp = queue[head % cap]
+                jp = queue[head & mask]
                 head += 1
                 qrow[pr] -= 1
                 qcnt[pr * width + x[k]] -= 1
+            else:
+                recheck = done + _RECHECK_EVENTS  # its neighbour is behind: run others a while
         while jp < 0 and cur < n:  # else the next new event that can run, deferring the others
             k = seg[cur]
             pl = ((1 if p[k] else 0) if per_pol else 0) * rows
@@ -266,16 +286,19 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
                                         prev_lt, prev_pol, dec, dec_lt, burst, startup, False)
             if not later:
                 jp = cur
-            elif tail - head == cap:
+            elif tail - head > mask:
                 break  # the queue is full: wait for its front
             else:
-                queue[tail % cap] = cur
+                queue[tail & mask] = cur
                 tail += 1
                 qrow[pl + r] += 1
                 qcnt[(pl + r) * width + x[k]] += 1
                 stats[1] += 1
             cur += 1
         if jp < 0:
+            if head < tail and not looked:
+                recheck = done  # nothing else can run: look at the front again
+                continue
             break  # nothing can run before a neighbour publishes
         k = seg[jp]
         if own_lo <= y[k] < own_hi:
@@ -379,22 +402,31 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
 
 @njit(cache=True)
 def _strip_index(y, lo, hi):
-    """The events of every strip's rows ``[lo, hi)`` in time order, concatenated, and the strips' offsets."""
+    """The events of every strip's rows ``[lo, hi)`` in time order, concatenated, and the strips' offsets.
+
+    The strips are sorted and overlap only in their halos, so the strips holding
+    a row are a contiguous range, found once per row.
+    """
     n_tiles = lo.shape[0]
+    height = hi[-1]
+    first = np.full(height, n_tiles, np.int64)
+    last = np.full(height, -1, np.int64)
+    for s in range(n_tiles):
+        for r in range(lo[s], hi[s]):
+            first[r] = min(first[r], s)
+            last[r] = max(last[r], s)
     starts = np.zeros(n_tiles + 1, np.int64)
     for k in range(y.shape[0]):
-        for s in range(n_tiles):
-            if lo[s] <= y[k] < hi[s]:
-                starts[s + 1] += 1
+        for s in range(first[y[k]], last[y[k]] + 1):
+            starts[s + 1] += 1
     for s in range(n_tiles):
         starts[s + 1] += starts[s]
     idx = np.empty(starts[-1], np.int64)
     fill = starts[:-1].copy()
     for k in range(y.shape[0]):
-        for s in range(n_tiles):
-            if lo[s] <= y[k] < hi[s]:
-                idx[fill[s]] = k
-                fill[s] += 1
+        for s in range(first[y[k]], last[y[k]] + 1):
+            idx[fill[s]] = k
+            fill[s] += 1
     return idx, starts
 
 
@@ -438,13 +470,12 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     roff = np.zeros(n_tiles + 1, np.int64)
     roff[1:] = np.cumsum(planes * rows)
     qoff = np.zeros(n_tiles + 1, np.int64)
-    qoff[1:] = np.cumsum(np.minimum(np.diff(starts), _QUEUE_MAX))
+    qoff[1:] = np.cumsum(np.full(n_tiles, 1 << max(int(_QUEUE_MAX) - 1, 1).bit_length()))
     local = [np.empty(off[-1], a.dtype) for a in state]
     for s in range(n_tiles):
         for g, l in zip(state, local):
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
-    # without burst grouping every decision is "new burst": known to all, nothing to wait for
-    dec = np.full(x.shape[0], 1 if kernel_args[0] <= 0.0 else 0, np.int8)
+    dec = np.zeros(x.shape[0], np.int8)
     # outputs per slot (each strip writes its own memory), then put in place
     slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     threads = min(n_tiles, numba.get_num_threads())

@@ -191,3 +191,4 @@ def test_balanced_strips_follow_the_events():
     even = balanced_strips(np.arange(90) % 90, 90, 3)
     assert np.array_equal(even[:, 1], [30, 60, 90])
     assert np.array_equal(balanced_strips(np.zeros(0, np.int64), 7, 7)[:, 0], np.arange(7))
+
