@@ -232,12 +232,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evedge._validate import check_bool, check_positive
+from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _fit_windows, _intra_stream, scratch_arrays
+from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._tiles import check_n_tiles, intra_tiled
-from .result import empty_lifetimes
+from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
@@ -315,6 +315,26 @@ class IntraParams:
         clipped, get no estimate (their fit still sets their pixel's burst
         state); Mueggler et al.'s code skips 2 px. Default 0 (the paper says
         nothing). See the module notes ("border").
+    split_jump_check : bool
+        With ``split_gap_ratio > 0``: no estimate when the largest time gap the
+        linkage cluster took was forced (taken only because the cluster fixed no
+        plane yet) and is more than ``split_gap_ratio`` times every other gap it
+        took: a jump to a stale level, not a step of the edge's ramp (default
+        False, as before). See the module notes ("stale levels").
+    stale_fraction : float
+        In [0, 1). Above 0, an event that starts a burst ignores the window's
+        times older than ``stale_fraction`` of the interval since its pixel's
+        previous event of the same polarity (an earlier passage: the same edge
+        cannot pass the pixel twice in between); 0.5 is the midpoint. Default 0
+        (the paper: every time is a point). Streaming only (a hand-made window
+        of :func:`fit_window` has no history). See the module notes ("stale levels").
+    startup_reach : float
+        >= 0. Above 0, no estimate while the window's history is too short: when
+        ``startup_reach`` times the fitted plane's reach in the window (its oldest
+        cell is ``half (|a| + |b|)`` before the event) goes back before the first
+        event the estimator was given since its last reset (the fit still sets
+        the pixel's burst state, as with ``border_px``). Default 0 (the paper).
+        Streaming only. See the module notes ("start-up").
     """
 
     window_size: int = 5
@@ -334,6 +354,9 @@ class IntraParams:
     event_on_plane: float = 0.0
     burst_startup: bool = True
     border_px: int = 0
+    split_jump_check: bool = False
+    stale_fraction: float = 0.0
+    startup_reach: float = 0.0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -360,20 +383,23 @@ class IntraParams:
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
         check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "event_on_plane", self.event_on_plane, allow_zero=True)
+        check_positive(own, "startup_reach", self.startup_reach, allow_zero=True)
+        check_real(own, "stale_fraction", self.stale_fraction, 0.0, 1.0, low_open=False, high_open=True)
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
             check_bool(own, name, getattr(self, name))
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
-                     "split_gap_ratio", "event_on_plane"):
+                     "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
-ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True}
+ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
+          "stale_fraction": 0.5, "startup_reach": 1.0}
 
 
 def robust_params(**overrides) -> IntraParams:
@@ -438,15 +464,16 @@ class IntraPixelLifetime:
         self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
         self._n_seen = 0
         self._last_time: int | None = None
+        self._t_start: int | None = None  # the first event's time (start-up rule)
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
         events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
-        out = empty_lifetimes(n)
         if n == 0:
-            return out
+            return empty_lifetimes(0)
+        out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
         x, y, t, p = columns(events)
         lt = np.empty(n)
         vx = np.empty(n)
@@ -454,10 +481,14 @@ class IntraPixelLifetime:
         valid = np.empty(n, dtype=bool)
         pr = self.params
         w, h = self.sensor_size.width, self.sensor_size.height
+        if self._t_start is None:
+            self._t_start = int(t[0])
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
-                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
-                pr.burst_startup, pr.border_px)
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
+                off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
+                pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
+                pr.startup_reach * (pr.window_size // 2))  # options off as None: not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -574,7 +605,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 params.split_gap_ratio, params.event_on_plane)
+                 off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane), params.split_jump_check)
     return a, b, ok, inl.reshape(k, side, side)
 
 
