@@ -144,7 +144,9 @@ def one_worker_small_turns(monkeypatch):
 
 @pytest.mark.parametrize("params", [IntraParams(), IntraParams(burst_startup=False),
                                     IntraParams(split_gap_ratio=1.5, event_on_plane=1.0, border_px=2),
-                                    IntraParams(window_size=7, per_polarity=False, burst_lifetimes=2.0)])
+                                    IntraParams(window_size=7, per_polarity=False, burst_lifetimes=2.0),
+                                    IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
+                                                startup_reach=1.0)])
 def test_estimator_strips_with_constant_deferrals(shapes, one_worker_small_turns, params):
     """Out-of-order runs, full queues and halo replays waiting for a neighbour: still the serial bytes."""
     events, size = shapes
