@@ -119,7 +119,7 @@ def _schedule(x, y, p, prev_same, needs_own, idx, starts, lo, own_lo, own_hi, ro
                     nxt = min(nxt, clock[u])
             target = need if need < np.inf else nxt
             if not target < np.inf or target <= clock[s]:
-                target = clock[s] + halo_cost
+                target = clock[s] + max(halo_cost, 1e-3)  # always some progress
             waited[s] += target - clock[s]
             clock[s] = target
     return clock, waited, deferred
