@@ -31,6 +31,7 @@ from numba import njit
 from evedge._splitmix import _splitmix64
 
 from ._atomic import _load_acquire, _sched_yield, _store_release
+from ._noise_kernels import _NEWER, _newer_count
 
 _NEVER = np.iinfo(np.int64).min
 
@@ -177,7 +178,7 @@ def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
 
 @njit(cache=True)
 def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
-                min_inliers, intercept, fallback, gap_ratio, on_plane):
+                min_inliers, intercept, fallback, gap_ratio, on_plane, noise):
     """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
 
     The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
@@ -435,6 +436,12 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             return False, np.nan, np.nan
         if not on:
             return False, np.nan, np.nan
+        newer = noise[_NEWER]
+        if newer < 1.0:
+            # noise rule (module _noise_kernels): the plane must not leave many recent points above it
+            c = _newer_count(wf, _DX, _DY, _DT, n, a, b, delta, thr_us, thr_rel)
+            if c > newer * (c + best_n - 1):
+                return False, np.nan, np.nan
         return True, a, b
     return False, np.nan, np.nan
 
@@ -506,8 +513,8 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
 @njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt, out_vx, out_vy,
-                  out_valid, wf, wi):
+                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, noise, out_lt, out_vx,
+                  out_vy, out_valid, wf, wi):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -599,7 +606,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 big = max(big, abs(wi[_IT, i]))
             ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
                                    thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
-                                   fallback, gap_ratio, on_plane)
+                                   fallback, gap_ratio, on_plane, noise)
             if not trial:
                 break
             trial = False
@@ -638,7 +645,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane):
+                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane, noise):
     """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -669,7 +676,7 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
         # float times: 2-means sums them in float64 (exact=False)
         ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
                                max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
-                               gap_ratio, on_plane)
+                               gap_ratio, on_plane, noise)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

@@ -116,8 +116,8 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 @njit(parallel=True, cache=True)
 def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo,
                     own_hi, dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
-                    min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, out_lt,
-                    out_vx, out_vy, out_valid):
+                    min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, noise,
+                    out_lt, out_vx, out_vy, out_valid):
     """``n_threads`` workers share the strips: each takes any free strip, runs it until it needs a
     decision not yet taken (or to its end), gives it back, and moves on.
 
@@ -152,7 +152,8 @@ def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, pr
                                       prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
                                       dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
                                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
-                                      startup, border, out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b], wf, wi)
+                                      startup, border, noise, out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b],
+                                      wf, wi)
                     _store_release(cursor, s, j)
                     _store_release(busy, s, 0)
                     progressed = progressed or j > j0
@@ -169,9 +170,9 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
-    ``burst`` to ``border`` without the geometry (``burst, per_pol, half, delta,
+    ``burst`` to ``noise`` without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
-    fallback, seed, gap_ratio, on_plane, startup, border``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
+    fallback, seed, gap_ratio, on_plane, startup, border, noise``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
     shared by ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`).
     """
     half = kernel_args[2]

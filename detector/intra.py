@@ -236,6 +236,7 @@ from evedge._validate import check_bool, check_positive
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream, _scratch
+from ._noise_kernels import _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
 from .protocols import METHODS
@@ -314,6 +315,13 @@ class IntraParams:
         clipped, get no estimate (their fit still sets their pixel's burst
         state); Mueggler et al.'s code skips 2 px. Default 0 (the paper says
         nothing). See the module notes ("border").
+    newer_share_max : float
+        In (0, 1]. No estimate when more than this share of the window points
+        newer than the fitted plane or on it (its inlier band) are newer than
+        it: an edge leaves the pixels it passed on its plane and those ahead
+        older; a background event fitted to a steep plane of old points leaves
+        the window's recent events above it. Default 1 = off (the paper). See
+        the module notes ("noise").
     """
 
     window_size: int = 5
@@ -333,6 +341,7 @@ class IntraParams:
     event_on_plane: float = 0.0
     burst_startup: bool = True
     border_px: int = 0
+    newer_share_max: float = 1.0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -359,6 +368,9 @@ class IntraParams:
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
         check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "event_on_plane", self.event_on_plane, allow_zero=True)
+        check_positive(own, "newer_share_max", self.newer_share_max)
+        if self.newer_share_max > 1:
+            raise ValueError(f"{own}.newer_share_max must be in (0, 1] (1 = off), got {self.newer_share_max}")
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
@@ -367,7 +379,7 @@ class IntraParams:
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
-                     "split_gap_ratio", "event_on_plane"):
+                     "split_gap_ratio", "event_on_plane", "newer_share_max"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
@@ -385,6 +397,19 @@ def robust_params(**overrides) -> IntraParams:
     (3.0, 1.0, True, 3)
     """
     return IntraParams(**{**ROBUST, **overrides})
+
+
+def noise_args(params: IntraParams) -> np.ndarray:
+    """The noise rules' parameters as the kernels take them (one float64 array, :mod:`._noise_kernels`).
+
+    Examples
+    --------
+    >>> noise_args(IntraParams(newer_share_max=0.25))
+    array([0.25])
+    """
+    out = np.zeros(N_NOISE)
+    out[_NEWER] = params.newer_share_max
+    return out
 
 
 def _check_params(params) -> IntraParams:
@@ -455,7 +480,7 @@ class IntraPixelLifetime:
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
                 pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
-                pr.burst_startup, pr.border_px)
+                pr.burst_startup, pr.border_px, noise_args(pr))
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -572,7 +597,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 params.split_gap_ratio, params.event_on_plane)
+                 params.split_gap_ratio, params.event_on_plane, noise_args(params))
     return a, b, ok, inl.reshape(k, side, side)
 
 

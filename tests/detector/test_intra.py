@@ -1,6 +1,7 @@
 """Intra-pixel-area RANSAC: kernels against slow references, analytic edges, streaming, errors."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -148,7 +149,17 @@ def ref_ransac(points, kept, p, seed, g, delta):
         return "flat"
     if p.event_on_plane and p.refit_intercept and not ref_event_on_plane(pts[1:], a, b, p, delta):
         return "off plane"
+    if p.newer_share_max < 1.0:
+        newer = ref_newer_count(points, a, b, p, delta)
+        if newer > p.newer_share_max * (newer + cnt - 1):
+            return "recent points above the plane"
     return True, float(a), float(b), flags
+
+
+def ref_newer_count(points, a, b, p, delta):
+    """Window points newer than the plane through the current event, beyond its inlier band (newer_share_max)."""
+    thr = p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    return sum(1 for x, y, t in points if t - (a * x + b * y) - delta * (abs(a) + abs(b)) > thr)
 
 
 def ref_event_on_plane(past, a_all, b_all, p, delta):
@@ -249,7 +260,8 @@ def random_windows(n, side, rng):
                                 fallback_all_points=False),
      IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
      IntraParams(event_on_plane=1.0),
-     IntraParams(split_gap_ratio=3.0, event_on_plane=1.0)],
+     IntraParams(split_gap_ratio=3.0, event_on_plane=1.0),
+     IntraParams(newer_share_max=0.2), IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
@@ -626,6 +638,44 @@ def test_burst_startup_streaming_equals_one_shot():
     est = IntraPixelLifetime(SensorSize(24, 24), p)
     parts = [est.process(ev[i:i + 97]) for i in range(0, ev.size, 97)]
     assert np.concatenate(parts).tobytes() == want.tobytes()
+
+
+def _edge_with_recent_noise(n_recent):
+    """Axis-aligned edge (1000 us/px) behind the event, stale pixels ahead, ``n_recent`` pixels of column -2
+    fired again 100 us ago (background activity after the edge passed them)."""
+    w = np.full((5, 5), -50_000.0)  # columns +1, +2: an older passage
+    w[:, 2] = 0.0
+    w[:, 1] = -1000.0
+    w[:, 0] = -2000.0
+    w[:n_recent, 0] = -100.0
+    return w
+
+
+def test_newer_share_max_known_answer():
+    """Three recent points above the plane, 11 past inliers: share 3 / 14 = 0.214."""
+    w = _edge_with_recent_noise(3)
+    paper = fit_window(w, IntraParams())
+    assert paper.ok and paper.a_us_per_px == pytest.approx(1000.0) and abs(paper.b_us_per_px) < 1e-9
+    assert paper.inliers.sum() == 12  # the event, 4 of its column, 5 of column -1, 2 of column -2
+    assert not fit_window(w, IntraParams(newer_share_max=0.2)).ok  # 3 > 0.2 * 14
+    kept = fit_window(w, IntraParams(newer_share_max=0.25))  # 3 <= 0.25 * 14: the paper's fit, unchanged
+    assert kept.ok and kept.a_us_per_px == paper.a_us_per_px and kept.b_us_per_px == paper.b_us_per_px
+    clean = _edge_with_recent_noise(0)  # nothing above the plane: kept at any share
+    assert fit_window(clean, IntraParams(newer_share_max=0.01)).ok
+
+
+def test_newer_share_max_stream_matches_reference():
+    rng = np.random.default_rng(4)
+    size = SensorSize(12, 10)
+    n = 1500
+    t = np.sort(rng.integers(0, 300_000, n))
+    x = (t // 2_000 + rng.integers(0, 2, n)) % size.width  # an edge sweeping x, plus background events
+    x = np.where(rng.random(n) < 0.3, rng.integers(0, size.width, n), x)
+    ev = make_events(x, rng.integers(0, size.height, n), t, rng.random(n) < 0.5)
+    p = IntraParams(newer_share_max=0.25, split_gap_ratio=3.0, event_on_plane=1.0, min_points=4, min_inliers=4)
+    got = estimate_lifetimes(ev, size, p)
+    assert_lifetimes_close(got, ref_stream(ev, size, p))
+    assert 0 < got["valid"].sum() < estimate_lifetimes(ev, size, replace(p, newer_share_max=1.0))["valid"].sum()
 
 
 def test_linkage_split_keeps_a_jittered_ramp_whole():

@@ -62,7 +62,8 @@ def test_estimator_strips_on_the_real_recording(stripes_events):
 @pytest.mark.parametrize("params", [IntraParams(burst_lifetimes=0.0), IntraParams(window_size=7, per_polarity=False),
                                     IntraParams(burst_lifetimes=2.0, seed=5),
                                     IntraParams(split_gap_ratio=1.5, event_on_plane=1.0),
-                                    IntraParams(burst_startup=True, border_px=2)])
+                                    IntraParams(burst_startup=True, border_px=2),
+                                    IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25)])
 def test_estimator_strips_other_parameters(shapes, params):
     events, size = shapes
     sub = events[:40_000]
