@@ -20,11 +20,12 @@ without, as its original). Per cell and method, :func:`score` gives:
 ``noise``       share of the noise events given a lifetime (the noise measure;
                 NaN without noise);
 ``noise_floor`` share of the noise events that fired within half a lifetime of
-                a signal event of the same polarity at the same pixel (the edge
-                was passing that pixel: no rule that looks at times can tell
-                them from the edge's own events; a method that estimates the
-                edge's events gives these a lifetime too); the same for every
-                method, a property of the cell;
+                the passage of an edge of their polarity at their pixel (known
+                from the truth of the signal events at the pixel and its 8
+                neighbours, see :func:`_signal_distance`): no rule that looks
+                at times can tell them from the edge's own events, and a
+                method that estimates the edge's events gives these a lifetime
+                too; the same for every method, a property of the cell;
 ``first``       median |relative error| over the first 0.1 s (start-up, apart).
 
 :func:`run_grid` runs the cells as tasks on the project's Dask glue
@@ -149,22 +150,51 @@ def cells(quick: bool) -> list[tuple[str, dict]]:
 
 
 def _signal_distance(events, truth) -> np.ndarray:
-    """Per event: time (us) to the nearest *signal* event at its pixel with its polarity, in that event's lifetimes.
+    """Per event: time to the edge's passage at its pixel (same polarity), in lifetimes of that edge; ``inf``: none.
 
-    ``inf`` when its pixel has no such signal event (or that event has no finite truth lifetime).
+    The passage is known from every signal event of the same polarity at the
+    pixel or one of its 8 neighbours: a signal event at pixel ``s``, time
+    ``t_s``, normal flow ``v`` (truth) puts the edge at pixel ``q`` at
+    ``t_s + (q - s) . v / |v|^2`` (at ``s`` itself: ``t_s``). The distance is
+    ``|t - t_pass| / lifetime_s`` for the passages just before and just after
+    ``t`` (a pixel that skipped the passage, low contrast, still saw the edge
+    go by).
     """
     n = events.shape[0]
     out = np.full(n, np.inf)
-    sig = truth["is_signal"] & np.isfinite(truth["lifetime_us"]) & (truth["lifetime_us"] > 0)
+    lt = truth["lifetime_us"]
+    sig = truth["is_signal"] & np.isfinite(lt) & (lt > 0)
     if n == 0 or not sig.any():
         return out
-    key = (events["y"].astype(np.int64) * (int(events["x"].max()) + 1) + events["x"]) * 2 + events["p"]
-    t = events["t"].astype(np.int64)
-    order = np.lexsort((t[sig], key[sig]))
-    sk, st, sl = key[sig][order], t[sig][order], truth["lifetime_us"][sig][order]
-    # position of each event among the signal events sorted by (pixel key, time)
-    pos = np.searchsorted(sk * (1 << 40) + st, key * (1 << 40) + t)
-    for j in (pos - 1, pos):
+    vx = np.nan_to_num(truth["vx_px_s"][sig]) if "vx_px_s" in truth.dtype.names else np.zeros(sig.sum())
+    vy = np.nan_to_num(truth["vy_px_s"][sig]) if "vy_px_s" in truth.dtype.names else np.zeros(sig.sum())
+    v2 = vx * vx + vy * vy
+    wide = int(events["x"].max()) + 3
+    ex = events["x"].astype(np.int64) + 1
+    ey = events["y"].astype(np.int64) + 1
+    t = events["t"].astype(np.float64)
+    keys, times, lts = [], [], []
+    for oy in (-1, 0, 1):
+        for ox in (-1, 0, 1):
+            if ox or oy:
+                ok = v2 > 0
+                shift = np.where(ok, (ox * vx + oy * vy) / np.where(ok, v2, 1.0) * 1e6, np.nan)
+            else:
+                shift = np.zeros(v2.size)
+            keep = np.isfinite(shift)
+            keys.append((((ey[sig] + oy) * wide + ex[sig] + ox) * 2 + events["p"][sig])[keep])
+            times.append((t[sig] + shift)[keep])
+            lts.append(lt[sig][keep])
+    sk, st, sl = np.concatenate(keys), np.concatenate(times), np.concatenate(lts)
+    order = np.lexsort((st, sk))
+    sk, st, sl = sk[order], st[order], sl[order]
+    key = (ey * wide + ex) * 2 + events["p"]
+    # (pixel key, time) as one sorted float: times stay within +-5e7 us of 0 (checked), keys are small integers
+    if np.abs(st).max() >= 5e7 or np.abs(t).max() >= 5e7:
+        raise ValueError("_signal_distance: recordings longer than 50 s are not supported")
+    comb = sk * 1e8 + st
+    pos = np.searchsorted(comb, key * 1e8 + t)
+    for j in (pos - 1, pos):  # the passages just before and after the event
         jj = np.clip(j, 0, sk.size - 1)
         d = np.where((j >= 0) & (j < sk.size) & (sk[jj] == key), np.abs(st[jj] - t) / sl[jj], np.inf)
         out = np.minimum(out, d)

@@ -11,8 +11,9 @@ and method:
 ``>2x``    share of those estimates more than 2x off the truth (above 2x or below 1/2);
 ``sig``    share of the steady-state signal events with an estimate;
 ``noise``  share of the noise events given a lifetime (``-`` without noise): the noise measure;
-``floor``  share of the noise events within half a lifetime of a signal event at their pixel
-           (same polarity): the edge was passing, no timing rule tells them apart (per cell);
+``floor``  share of the noise events within half a lifetime of an edge's passage at their pixel
+           (same polarity, from the truth of the signal events there and at the 8 neighbours): the
+           edge was passing, no timing rule tells them apart (per cell);
 ``first``  median |relative error| over the first 0.1 s (start-up, reported apart);
 
 then the worst cell per group, how many cells meet each of issue 11's goals, and the noise
@@ -194,7 +195,7 @@ def score_scene(path, params) -> int:
               f"signal estimated {100 * sc['sig']:.1f} %, noise given a lifetime {100 * sc['noise']:.1f} %, "
               f"first 0.1 s error {100 * sc['first']:.1f} %")
         floor = sc["noise_floor"]
-    print(f"  noise floor (noise events within half a lifetime of a signal event at their pixel): {100 * floor:.1f} %")
+    print(f"  noise floor (noise events within half a lifetime of an edge's passage at their pixel): {100 * floor:.1f} %")
     return 0
 
 
@@ -289,7 +290,7 @@ def _noise_measure(rows, methods) -> None:
         return
     floor = np.array([r["intra_noise_floor"] for r in noisy])
     print(f"noise measure ({len(noisy)} noisy cells; share of noise events given a lifetime, median / max over cells):")
-    print(f"  floor (within half a lifetime of a signal event at their pixel): {100 * np.median(floor):.1f} / "
+    print(f"  floor (within half a lifetime of an edge's passage at their pixel): {100 * np.median(floor):.1f} / "
           f"{100 * floor.max():.1f} %")
     for m in methods:
         v = np.array([r[f"{m}_noise"] for r in noisy])

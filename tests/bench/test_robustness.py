@@ -28,6 +28,15 @@ def test_signal_distance_counts_same_pixel_same_polarity_signal_only():
     np.testing.assert_allclose(d, [0.0, 0.0, 0.7, math.inf, 2.5])
 
 
+def test_signal_distance_predicts_the_passage_from_a_neighbour():
+    """A signal event at x=0, t=0, flow +1000 px/s (lifetime 1000 us): the edge reaches x=1 at 1000 us, x=2 never
+    (not a neighbour); a noise event at x=1, 1300 us, is 0.3 lifetimes off; at x=1, 3000 us, 2 lifetimes."""
+    ev = make_events(np.array([0, 1, 1, 2]), np.zeros(4), np.array([0, 1300, 3000, 1500]), np.ones(4, bool))
+    dtype = [("is_signal", bool), ("lifetime_us", float), ("vx_px_s", float), ("vy_px_s", float)]
+    truth = np.array([(True, 1000.0, 1000.0, 0.0)] + [(False, np.nan, np.nan, np.nan)] * 3, dtype=dtype)
+    np.testing.assert_allclose(_signal_distance(ev, truth), [0.0, 0.3, 2.0, math.inf])
+
+
 def test_score_known_answer():
     # steady state from 100 ms after the first event; signal: 4 steady events, 3 estimated (ratios 1.1, 3, 0.9)
     rec = _rec(x=[0, 1, 2, 3, 4, 1, 5], t=[0, 150_000, 150_010, 150_020, 150_030, 150_400, 160_000],
