@@ -115,7 +115,7 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 @njit(parallel=True, cache=True)
 def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo,
-                    own_hi, dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
+                    own_hi, dec, dec_lt, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
                     min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, noise,
                     out_lt, out_vx, out_vy, out_valid):
     """``n_threads`` workers share the strips: each takes any free strip, runs it until it needs a
@@ -150,7 +150,7 @@ def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, pr
                     b = starts[s + 1]
                     j = _intra_stream(x, y, t, p, seg, j0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
                                       prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
-                                      dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
+                                      dec, dec_lt, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
                                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
                                       startup, border, noise, out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b],
                                       wf, wi)
@@ -193,7 +193,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     # outputs per slot (each strip writes its own memory), then put in place
     slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     _intra_parallel(min(n_tiles, numba.get_num_threads()), x, y, t, p, g0, idx, starts, off, *local, lo, rows,
-                    own_lo, own_hi, np.zeros(x.shape[0], np.int8), kernel_args[0], width, height, *kernel_args[1:],
+                    own_lo, own_hi, np.zeros(x.shape[0], np.int8), np.empty(x.shape[0]), kernel_args[0], width, height, *kernel_args[1:],
                     *slot_outs)
     ys = y[idx]
     tile_of = np.repeat(np.arange(n_tiles), np.diff(starts))

@@ -236,7 +236,7 @@ from evedge._validate import check_bool, check_positive
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _fit_windows, _intra_stream, _scratch
-from ._noise_kernels import _NEWER, N_NOISE
+from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
 from .protocols import METHODS
@@ -246,6 +246,7 @@ __all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate
            "fit_windows", "robust_params"]
 
 _NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
+_NO_HALO_LT = np.empty(0)
 
 
 @dataclass(frozen=True)
@@ -322,6 +323,18 @@ class IntraParams:
         older; a background event fitted to a steep plane of old points leaves
         the window's recent events above it. Default 1 = off (the paper). See
         the module notes ("noise").
+    burst_span_lifetimes : float
+        >= 0. With ``burst_lifetimes > 0``: an event continues its pixel's
+        burst only when it fired at most this many lifetimes (the previous
+        event's estimate) after the burst's first event; otherwise it starts a
+        new burst (default 0 = no bound: ``burst_lifetimes`` alone bounds the
+        gap to the previous event, so a background event shortly after a burst
+        continues it and gets its lifetime). See the module notes ("noise").
+    lifetime_agreement : float
+        0 or > 1. No estimate when the event's lifetime is more than this
+        factor above or below the median of its inlier pixels' own latest
+        estimates (when at least 3 of them have one; fewer: kept). Default 0
+        = off (the paper). See the module notes ("noise").
     """
 
     window_size: int = 5
@@ -342,6 +355,8 @@ class IntraParams:
     burst_startup: bool = True
     border_px: int = 0
     newer_share_max: float = 1.0
+    burst_span_lifetimes: float = 0.0
+    lifetime_agreement: float = 0.0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -369,6 +384,10 @@ class IntraParams:
         check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "event_on_plane", self.event_on_plane, allow_zero=True)
         check_positive(own, "newer_share_max", self.newer_share_max)
+        check_positive(own, "burst_span_lifetimes", self.burst_span_lifetimes, allow_zero=True)
+        check_positive(own, "lifetime_agreement", self.lifetime_agreement, allow_zero=True)
+        if 0 < self.lifetime_agreement <= 1:
+            raise ValueError(f"{own}.lifetime_agreement must be 0 (off) or > 1, got {self.lifetime_agreement}")
         if self.newer_share_max > 1:
             raise ValueError(f"{own}.newer_share_max must be in (0, 1] (1 = off), got {self.newer_share_max}")
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
@@ -379,7 +398,8 @@ class IntraParams:
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
-                     "split_gap_ratio", "event_on_plane", "newer_share_max"):
+                     "split_gap_ratio", "event_on_plane", "newer_share_max", "burst_span_lifetimes",
+                     "lifetime_agreement"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
@@ -405,10 +425,12 @@ def noise_args(params: IntraParams) -> np.ndarray:
     Examples
     --------
     >>> noise_args(IntraParams(newer_share_max=0.25))
-    array([0.25])
+    array([0.25, 0.  , 0.  ])
     """
     out = np.zeros(N_NOISE)
     out[_NEWER] = params.newer_share_max
+    out[_BURST_SPAN] = params.burst_span_lifetimes
+    out[_AGREE] = params.lifetime_agreement
     return out
 
 
@@ -485,7 +507,7 @@ class IntraPixelLifetime:
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
-                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, False, per_pol, half, *args[3:],
                           lt, vx, vy, valid, *_scratch(pr.window_size**2))
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),

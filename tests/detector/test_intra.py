@@ -188,22 +188,28 @@ def ref_stream(events, size, p: IntraParams):
         plane = pol if p.per_polarity else 0
         key = (plane, x, y)
         pt, plt, ppol = prev.get(key, (0, math.nan, None))
-        cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt
+        span = p.burst_span_lifetimes
+        cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt and (not span or t_ev - sae[key] <= span * plt)
         trial = p.burst_startup and burst > 0 and not cont and ppol == pol and math.isnan(plt)
+        inliers = []  # pixels of the last fit's inliers
 
         def fit(t):
-            pts = []
+            pts, cells = [], []
             for oy in range(-half, half + 1):
                 for ox in range(-half, half + 1):
                     q = (plane, x + ox, y + oy)
                     if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
                         pts.append((float(ox), float(oy), float(sae[q] - t)))
-            return ref_fit(pts, p, p.seed, g, p.delta_px)[:3]
+                        cells.append(q)
+            ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px)
+            inliers[:] = [q for q, f in zip(cells, flags) if f]
+            return ok, a, b
 
         if cont or trial:
             ok, a, b = fit(sae[key])  # fitted at the burst's first time
             if trial:
-                if ok and t_ev - pt <= burst * math.hypot(a, b):
+                lt_fit = math.hypot(a, b)
+                if ok and t_ev - pt <= burst * lt_fit and (not span or t_ev - sae[key] <= span * lt_fit):
                     cont = True
                 else:
                     sae[key] = t_ev
@@ -211,6 +217,12 @@ def ref_stream(events, size, p: IntraParams):
         else:
             sae[key] = t_ev
             ok, a, b = fit(t_ev)
+        if ok and p.lifetime_agreement:
+            known = [prev[q][1] for q in inliers if q in prev and not math.isnan(prev[q][1])]
+            if len(known) >= 3:
+                med = float(np.median(known))
+                lt_fit, k = math.hypot(a, b), p.lifetime_agreement
+                ok = lt_fit <= k * med and lt_fit * k >= med
         lt = math.sqrt(a * a + b * b) if ok else math.nan
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
@@ -664,7 +676,7 @@ def test_newer_share_max_known_answer():
     assert fit_window(clean, IntraParams(newer_share_max=0.01)).ok
 
 
-def test_newer_share_max_stream_matches_reference():
+def test_noise_rules_stream_match_reference():
     rng = np.random.default_rng(4)
     size = SensorSize(12, 10)
     n = 1500
@@ -672,10 +684,14 @@ def test_newer_share_max_stream_matches_reference():
     x = (t // 2_000 + rng.integers(0, 2, n)) % size.width  # an edge sweeping x, plus background events
     x = np.where(rng.random(n) < 0.3, rng.integers(0, size.width, n), x)
     ev = make_events(x, rng.integers(0, size.height, n), t, rng.random(n) < 0.5)
-    p = IntraParams(newer_share_max=0.25, split_gap_ratio=3.0, event_on_plane=1.0, min_points=4, min_inliers=4)
-    got = estimate_lifetimes(ev, size, p)
-    assert_lifetimes_close(got, ref_stream(ev, size, p))
-    assert 0 < got["valid"].sum() < estimate_lifetimes(ev, size, replace(p, newer_share_max=1.0))["valid"].sum()
+    base = IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, min_points=4, min_inliers=4)
+    plain = estimate_lifetimes(ev, size, base)["valid"].sum()
+    for rule in (dict(newer_share_max=0.25), dict(burst_span_lifetimes=1.0), dict(lifetime_agreement=1.5),
+                 dict(newer_share_max=0.25, burst_span_lifetimes=1.5, lifetime_agreement=2.0)):
+        p = replace(base, **rule)
+        got = estimate_lifetimes(ev, size, p)
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+        assert 0 < got["valid"].sum() < plain, rule  # each rule rejects some of these events
 
 
 def test_linkage_split_keeps_a_jittered_ramp_whole():
