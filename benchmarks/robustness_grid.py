@@ -21,13 +21,13 @@ measure of the run (median and worst over the noisy cells, cells <= 10 %, cells 
 Mueggler's, the floor).
 
 Run ``.venv/bin/python benchmarks/robustness_grid.py --quick`` (a reduced grid, 72 cells at
-64x48) or without ``--quick`` for the whole grid (210 cells at 96x72); ``--robust`` starts from
-:func:`~evedge.detector.intra.robust_params` instead of the defaults; ``--intra key=value``
+64x48) or without ``--quick`` for the whole grid (210 cells at 96x72); ``--preset robust`` / ``noise``
+starts from :func:`~evedge.detector.intra.robust_params` / :func:`~evedge.detector.intra.noise_params`
+instead of the defaults; ``--intra key=value``
 (repeatable) changes an :class:`~evedge.detector.intra.IntraParams` field on top, e.g.
 ``--intra newer_share_max=0.25`` to measure a departure from the paper;
-``--scene SCENE.toml`` scores one scene file instead (the ``--intra`` parameters,
-:func:`~evedge.detector.intra.robust_params` and Mueggler's); ``--csv FILE`` writes every cell's
-figures, ``--plot FILE.png`` draws them (clean stripes: median error and share > 2x off against
+``--scene SCENE.toml`` scores one scene file instead (the ``--preset`` / ``--intra`` parameters,
+both presets and Mueggler's); ``--csv FILE`` writes every cell's figures, ``--plot FILE.png`` draws them (clean stripes: median error and share > 2x off against
 speed per contrast ratio, median over the angles; noisy cells: share of noise events given a
 lifetime against the noise rate). CPU time is ``time.process_time`` summed over the cells (each
 measured in the process that ran it), simulation apart.
@@ -47,9 +47,13 @@ import time
 import numpy as np
 
 from evedge.bench.robustness import STEADY_US, cells, run_grid, score, tasks
-from evedge.detector.intra import IntraParams, robust_params
+from evedge.detector.intra import IntraParams, noise_params, robust_params
 from evedge.detector.pipeline import detect
 from evedge.sim import simulate
+
+
+#: --preset: where the intra parameters start (``--intra`` changes fields on top).
+PRESETS = {"defaults": IntraParams, "robust": robust_params, "noise": noise_params}
 
 
 def _parse_intra(items, base: IntraParams | None = None) -> IntraParams:
@@ -89,7 +93,8 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="reduced grid (72 cells at 64x48)")
     ap.add_argument("--size", default=None, help="sensor WxH (default 96x72, --quick 64x48)")
     ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--robust", action="store_true", help="start from robust_params() instead of the defaults")
+    ap.add_argument("--preset", choices=tuple(PRESETS), default="defaults",
+                    help="IntraParams to start from: the defaults, robust_params() or noise_params()")
     ap.add_argument("--intra", action="append", default=[], metavar="KEY=VALUE", help="IntraParams field")
     ap.add_argument("--no-mueggler", action="store_true", help="skip the baseline")
     ap.add_argument("--only", default=None, choices=("stripes", "rotation", "shapes"), help="only cells of this kind")
@@ -99,11 +104,11 @@ def main(argv=None) -> int:
     ap.add_argument("--csv", default=None)
     ap.add_argument("--plot", default=None, help="write a figure of the grid (PNG)")
     ap.add_argument("--scene", default=None, metavar="SCENE.toml",
-                    help="instead of the grid: score one scene file (defaults, robust_params(), Mueggler)")
+                    help="instead of the grid: score one scene file (these parameters, the presets, Mueggler)")
     args = ap.parse_args(argv)
     if args.workers is not None and args.workers < 0:
         ap.error(f"--workers must be >= 0, got {args.workers}")
-    params = _parse_intra(args.intra, robust_params() if args.robust else None)
+    params = _parse_intra(args.intra, PRESETS[args.preset]())
     if args.scene:
         return score_scene(args.scene, params)
     size = args.size or ("64x48" if args.quick else "96x72")
@@ -185,6 +190,7 @@ def score_scene(path, params) -> int:
     rec = simulate(load_scene(path), progress=False)
     runs = {f"intra {params}": dict(method="intra", params=params),
             "intra robust_params()": dict(method="intra", params=robust_params()),
+            "intra noise_params()": dict(method="intra", params=noise_params()),
             "mueggler": dict(method="mueggler")}
     print(f"{path}: {rec.events.size} events ({100 * rec.truth['is_signal'].mean():.1f} % signal); steady state "
           f"from {STEADY_US} us")

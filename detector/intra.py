@@ -242,8 +242,8 @@ from .result import empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
-__all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate_lifetimes", "fit_window",
-           "fit_windows", "robust_params"]
+__all__ = ["IntraParams", "IntraPixelLifetime", "NOISE_RULES", "ROBUST", "WindowFit", "estimate_lifetimes",
+           "fit_window", "fit_windows", "noise_params", "robust_params"]
 
 _NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
 _NO_HALO_LT = np.empty(0)
@@ -417,6 +417,22 @@ def robust_params(**overrides) -> IntraParams:
     (3.0, 1.0, True, 3)
     """
     return IntraParams(**{**ROBUST, **overrides})
+
+
+#: The noise rules measured on ``benchmarks/robustness_grid.py`` (module notes, "noise"), all together.
+NOISE_RULES = {"newer_share_max": 0.25, "burst_span_lifetimes": 1.5, "lifetime_agreement": 2.0}
+
+
+def noise_params(**overrides) -> IntraParams:
+    """:func:`robust_params` with the noise rules on too (:data:`NOISE_RULES`), plus any ``overrides``.
+
+    Examples
+    --------
+    >>> p = noise_params()
+    >>> (p.split_gap_ratio, p.event_on_plane, p.newer_share_max, p.burst_span_lifetimes, p.lifetime_agreement)
+    (3.0, 1.0, 0.25, 1.5, 2.0)
+    """
+    return IntraParams(**{**ROBUST, **NOISE_RULES, **overrides})
 
 
 def noise_args(params: IntraParams) -> np.ndarray:
