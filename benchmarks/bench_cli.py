@@ -13,6 +13,8 @@ file in a temporary folder. Measured in one run:
   the CLI's time spent in the detector itself (target >= 0.8); memory per
   event = (peak - the peak of the same command on a 1000-event file) / events
   (target <= 64 bytes);
+* which kernels a serial run compiles, each with its compilation time (numba's
+  timers, wall clock; a child process with an empty cache);
 * the cold start: the same command on the first ``--cold-events`` events (1 M
   and 10 M) with
   an empty numba cache (``NUMBA_CACHE_DIR`` set to a fresh folder) against the
@@ -42,6 +44,7 @@ from evedge.events import Recording  # noqa: E402
 from evedge.io.hdf5 import write_recording  # noqa: E402
 
 EVEDGE = Path(sys.executable).with_name("evedge")
+_RUNS = 0
 
 
 def repeated(events, copies):
@@ -60,6 +63,9 @@ def run_cli(src: Path, out: Path, *extra, env=None):
     Through ``/usr/bin/time``: a child forked from this (large) process would count
     this process's pages in its own peak RSS.
     """
+    global _RUNS
+    _RUNS += 1
+    out = out.with_name(f"{out.name}_{_RUNS}")  # a fresh folder each run (evedge detect refuses an existing one)
     w0 = time.perf_counter()
     proc = subprocess.run(["/usr/bin/time", "-f", "%e %U %S %M", str(EVEDGE), "detect", str(src), "-o", str(out),
                            "--quiet", *extra], env=env, capture_output=True, text=True)
@@ -68,6 +74,36 @@ def run_cli(src: Path, out: Path, *extra, env=None):
         raise SystemExit(f"evedge detect failed: {proc.stderr}")
     _, user, system, max_kb = proc.stderr.strip().splitlines()[-1].split()
     return wall, float(user) + float(system), int(max_kb) * 1024
+
+
+_COMPILED = r"""
+import sys, time
+import numpy as np
+from evedge.detector import detect, edge_frames
+from evedge.detector import _buffer_kernels, _edges_kernels, _intra_kernels
+from evedge import _splitmix
+from evedge.events import make_events
+g = np.random.default_rng(0)
+ev = make_events(g.integers(0, 64, 3000), g.integers(0, 64, 3000), np.sort(g.integers(0, 10**6, 3000)),
+                 g.random(3000) < 0.5)
+c0 = time.process_time()
+res = detect(ev, (64, 64))
+edge_frames(ev[res.kept], res.lifetimes[res.kept], (64, 64), [10**6], display="predecessor")
+print(f"  first detect + edge frames on 3000 events: CPU {time.process_time() - c0:.2f} s; compiled:")
+for mod in (_intra_kernels, _buffer_kernels, _edges_kernels, _splitmix):
+    for name in sorted(vars(mod)):
+        for cres in getattr(getattr(mod, name), "overloads", {}).values():
+            tm = (cres.metadata or {}).get("timers", {})
+            print(f"    {mod.__name__.rsplit('.', 1)[-1]}.{name}: {tm.get('compiler_lock', 0):.2f} s wall "
+                  f"(LLVM {tm.get('llvm_lock', 0):.2f}; a caller's time includes its callees')")
+"""
+
+
+def compiled_kernels(tmp: Path):
+    """Which kernels a serial ``detect`` + edge frames compiles, with an empty numba cache (a child process)."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba_cache_list")}
+    proc = subprocess.run([sys.executable, "-c", _COMPILED], env=env, capture_output=True, text=True)
+    print(proc.stdout.rstrip() if proc.returncode == 0 else f"  (failed: {proc.stderr.strip()[-300:]})")
 
 
 def main(argv=None):
@@ -112,6 +148,8 @@ def main(argv=None):
                   f"{(rss - base_rss) / n:.1f} B/event above the {base_rss / 2**20:.0f} MiB of a 1000-event run "
                   f"(target <= 64)")
 
+        print("cold start: the kernels compiled by a serial run")
+        compiled_kernels(tmp)
         for m in args.cold_events:
             cold_src = tmp / f"cold{m}.h5"
             write_recording(cold_src, Recording(big[:m], size))

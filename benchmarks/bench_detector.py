@@ -42,6 +42,24 @@ each further trial ~0.025 us, and stripes.mat runs ~10.2 trials per event
 count, not the code, is what is left to gain on one core. The event buffer costs
 ~0.03 us per event (28-30 ns at load ~3, after its kernel's rewrite; was ~0.05),
 ``detect``'s own bookkeeping (checks, boolean indexing) ~0.03 us.
+
+Profile of the estimator by stages (2026-12-01, engineer i12: copies of the
+kernel returning after each stage, start-up rule off so that every event is
+fitted once, CPU time in one run, load ~3; stripes.mat / shapes_translation, ns
+per kept event): window gather with the per-event state ~62 / 63; 2-means
+~64 / 58 (2.2 passes over ~21 points); compaction of the kept cluster ~44 / 35
+(~13 points); RANSAC and refit the rest (516 / 330 in all; with one trial
+267 / 250), i.e. ~26-30 ns per further trial at 10.4 / 3.9 trials per fit, 4.1
+/ 1.9 tie-breaking cost sums per fit. Tried, same bytes, no gain beyond the
++-3 % noise: the inlier counts of the 4 candidates of a batch in one pass over
+the points (4 independent lanes), counting in fixed blocks of 4 on padded
+points, the tie-breaking cost only computed for a tie (and for the best so
+far then), no inlier bookkeeping for the stream (1.00-1.03x). The 64-bit
+modulo of the draws is ~3 ns per trial (a multiply-shift in its place, which
+changes the draws: 1.05x). So the kernel is latency-bound per event (dependent
+chains, unpredictable branches on the counts) rather than by any one loop, and
+3.5 M events/s per core (~286 ns per event for all stages) would need about
+half of today's estimator work per event: not reached.
 """
 
 from __future__ import annotations
@@ -166,7 +184,8 @@ def bench(name, events, size, repeat, tiles):
     if base.startswith("Mueggler"):
         print(f"full pipeline / Mueggler baseline (CPU, events/s): {rate[rows[4][0]] / rate[base]:.2f}")
     print(f"kept by buffer {kept.mean():.3f}; with estimate (of kept) {lifetimes['valid'].mean():.3f}")
-    print(f"per core, full pipeline + edge image: {rate[full] / 1e6:.2f} M events/s (CPU time)")
+    print(f"per core, full pipeline + edge image: {rate[full] / 1e6:.2f} M events/s (CPU time); "
+          f"target 3.5 M: ratio {rate[full] / 3.5e6:.2f}")
     speedup, cpu_eff = 1.0, 1.0
     if tiles > 1:
         speedup, cpu_eff = bench_tiles(events, size, repeat, tiles)

@@ -28,6 +28,14 @@ def new_state(width, height):
     return state
 
 
+def empty_state(width, height):
+    """:func:`new_state` in plain numpy, for callers outside numba (the same bytes, no compilation)."""
+    state = np.empty(4 * (height + 2) * (width + 2), dtype=np.int64)
+    state[0::2] = NEVER
+    state[1::2] = -1
+    return state
+
+
 @njit(cache=True, inline="always")
 def _walk(state, c, g, base_g, t, prev, supported, lo):
     """Mark the unwalked events of the pixel at ``c``, newest ``g``, no older than ``lo``; then none is left unwalked.

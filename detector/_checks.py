@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
+
 import numpy as np
 
 from evedge._validate import check_positive  # noqa: F401  (the detector's parameter classes import it from here)
-from evedge.events import SensorSize, validate_events
+from evedge.events import EVENT_DTYPE, SensorSize, validate_events
 
 from .result import LIFETIME_DTYPE
 
@@ -29,8 +32,79 @@ def check_events(events, sensor_size: SensorSize, name: str = "events") -> np.nd
 
     The detector's one validation point: callers must use the returned array,
     which is ``events`` itself when it already has :data:`~evedge.events.EVENT_DTYPE`.
+    O(1) for an array inside a :func:`validated` block (already checked, read-only).
     """
+    if _is_validated(events, sensor_size):
+        return events
     return validate_events(events, sensor_size, name=name)
+
+
+#: The arrays of the open :func:`validated` blocks of each thread: ``(array, SensorSize)``.
+_VALIDATED = threading.local()
+
+
+@contextmanager
+def validated(events: np.ndarray, sensor_size: SensorSize):
+    """Within the block, :func:`check_events` of ``events`` (or of a contiguous slice of it) is O(1).
+
+    For a pipeline that checked ``events`` once (it must be :func:`check_events`'
+    result, or an array made from such a one that keeps its order and range,
+    such as a boolean subset) and hands it, or slices of it, to its stages:
+    their own checks then skip the O(n) pass over the same memory. The marker
+    stays honest: ``events`` is made read-only for the block (and writeable
+    again after it, if it was), so nothing can change it between the check and
+    the stages that rely on it; a stage that tries gets numpy's "read-only"
+    error. Thread-local: another thread's checks are not affected.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from evedge.events import SensorSize, make_events
+    >>> size = SensorSize(4, 4)
+    >>> ev = check_events(make_events([0, 1], [0, 1], [0, 5], [True, False]), size)
+    >>> with validated(ev, size):
+    ...     check_events(ev[1:], size) is not None, ev.flags.writeable
+    (True, False)
+    >>> ev.flags.writeable
+    True
+    """
+    if not (isinstance(events, np.ndarray) and events.dtype == EVENT_DTYPE and events.ndim == 1):
+        raise TypeError("validated: expected a checked 1-D array of EVENT_DTYPE (check_events' result)")
+    stack = getattr(_VALIDATED, "stack", None)
+    if stack is None:
+        stack = _VALIDATED.stack = []
+    unlock = events.flags.writeable
+    events.flags.writeable = False
+    stack.append((events, sensor_size))
+    try:
+        yield events
+    finally:
+        stack.pop()
+        if unlock:
+            events.flags.writeable = True
+
+
+def _is_validated(events, sensor_size: SensorSize) -> bool:
+    """Whether ``events`` is (a step-1 slice of) an array of an open :func:`validated` block on a sensor within ``sensor_size``."""
+    stack = getattr(_VALIDATED, "stack", None)
+    if not stack or not isinstance(events, np.ndarray) or events.dtype != EVENT_DTYPE or events.ndim != 1:
+        return False
+    start = None
+    for arr, size in stack:
+        if size.width > sensor_size.width or size.height > sensor_size.height:
+            continue
+        if events is arr:
+            return True
+        if events.size == 0 or events.strides != arr.strides or arr.strides[0] <= 0 or events.flags.writeable:
+            continue  # a slice of an array of the block is read-only, as the array
+        if start is None:
+            start = events.__array_interface__["data"][0]
+        lo = arr.__array_interface__["data"][0]
+        step = arr.strides[0]
+        off = start - lo
+        if 0 <= off and off % step == 0 and off // step + events.size <= arr.size:
+            return True
+    return False
 
 
 def check_not_before(events: np.ndarray, last_t_us: int | None, name: str = "events") -> None:

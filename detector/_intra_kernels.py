@@ -98,6 +98,21 @@ def _scratch(nn):
     return wf, np.zeros((6, nn), np.int64)
 
 
+def scratch_arrays(nn):
+    """:func:`_scratch` in plain numpy, for callers outside numba (the same bytes, no compilation).
+
+    The table's logarithms come from Python's ``math.log``, the same C library
+    function a numba kernel calls (``tests/detector/test_intra.py`` compares the bytes).
+    """
+    rows = _LOG + nn + 1 if nn <= _LOG_TABLE_MAX else _LOG
+    wf = np.full((rows, nn + 2), np.nan)
+    for m in range(1, rows - _LOG):
+        for c in range(2, m + 1):
+            w = (c - 1) / m
+            wf[_LOG + m, c] = math.log(1.0 - w * w)
+    return wf, np.zeros((6, nn), np.int64)
+
+
 @njit(cache=True)
 def _degenerate(wf, n, lo, hi, min_points):
     """Whether the window points with ``lo <= dt <= hi`` and the current event fix no plane through it.

@@ -34,7 +34,7 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import _buffer_scan, _n_decided, new_state
+from ._buffer_kernels import _buffer_scan, _n_decided, empty_state
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from .protocols import METHODS
@@ -98,7 +98,7 @@ class EventBuffer:
     def reset(self) -> None:
         """Forget every event seen."""
         w, h = self.sensor_size.width, self.sensor_size.height
-        self._state = new_state(w, h)  # per pixel and polarity, padded border (see _buffer_kernels)
+        self._state = empty_state(w, h)  # per pixel and polarity, padded border (see _buffer_kernels)
         # the unreleased events are slots [_start, _end) of growable arrays (the events
         # and their plain columns, converted once on arrival): a chunk costs O(chunk),
         # not O(events waiting), however long the support window keeps them
@@ -219,7 +219,7 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
     if n_tiles > 1:
         return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles)
     supported = np.empty(n, dtype=bool)  # every entry set by the kernel, as is prev
-    _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, new_state(w, h), w, h,
+    _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h,
                  params.tau_min_us, params.mode == "causal")
     return supported
 

@@ -154,6 +154,7 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     from evedge.io.detection import LIFETIME_COLUMNS
 
     from .edges import EdgeImage
+    from ._checks import validated
     from .pipeline import _check_estimate, keep_mask, make_method
 
     kept = keep_mask(filter_name, events, sensor, filter_params) if filter_name else np.ones(events.size, bool)
@@ -171,23 +172,24 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
             rows = table[start:stop]
             keep = kept[start:stop]
             chunk = events[start:stop][keep]
-            lt = _check_estimate(method, est.process(chunk), chunk.size)
-            for name in lt.dtype.names:
-                col = rows[name]
-                col[...] = False if name == "valid" else np.nan
-                col[keep] = lt[name]
-            # the edge image, frame by frame inside the chunk
-            pos = np.cumsum(keep)  # kept events among the chunk's first j + 1
-            done = 0
-            while f < frame_t.size and ends[f] <= stop:
-                upto = int(pos[ends[f] - start - 1]) if ends[f] > start else 0
-                if upto > done:
-                    image.process(chunk[done:upto], lt[done:upto])
-                    done = upto
-                frames[order[f]] = image.image_at(int(frame_t[order[f]]))
-                f += 1
-            if done < chunk.size:
-                image.process(chunk[done:], lt[done:])
+            with validated(chunk, sensor):  # a subset, in order, of checked events: the stages' checks are O(1)
+                lt = _check_estimate(method, est.process(chunk), chunk.size)
+                for name in lt.dtype.names:
+                    col = rows[name]
+                    col[...] = False if name == "valid" else np.nan
+                    col[keep] = lt[name]
+                # the edge image, frame by frame inside the chunk
+                pos = np.cumsum(keep)  # kept events among the chunk's first j + 1
+                done = 0
+                while f < frame_t.size and ends[f] <= stop:
+                    upto = int(pos[ends[f] - start - 1]) if ends[f] > start else 0
+                    if upto > done:
+                        image.process(chunk[done:upto], lt[done:upto])
+                        done = upto
+                    frames[order[f]] = image.image_at(int(frame_t[order[f]]))
+                    f += 1
+                if done < chunk.size:
+                    image.process(chunk[done:], lt[done:])
             bar.update(stop - start)
     while f < frame_t.size:  # instants after the last event
         frames[order[f]] = image.image_at(int(frame_t[order[f]]))
@@ -328,6 +330,7 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     from evedge.events import Frames
 
     from .edges import PRIMARY_DISPLAY
+    from ._checks import validated
     from .pipeline import _default_filter, edge_frames_of, resolved_params
     from .protocols import METHODS
 
@@ -389,8 +392,9 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
                    f"({1e6 / fps:.0f} us at --fps {fps:g}); pass --times or a higher --fps", err=True)
     table = kept = None
     if entry.kind == "estimator":
-        table, kept, frames = _estimate(method, events, size, filter_name, filter_all, params, frame_t, display,
-                                        quiet)
+        with validated(events, size):  # checked once, when read (Recording): the stages' checks are O(1)
+            table, kept, frames = _estimate(method, events, size, filter_name, filter_all, params, frame_t, display,
+                                            quiet)
     else:
         frames = edge_frames_of(method, events, size, frame_t, params)
     source = Path(events_file).resolve()

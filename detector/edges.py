@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
-                      columns)
+                      columns, validated)
 from ._edges_kernels import _DX, _DY, _edge_update
 
 __all__ = ["DISPLAYS", "DISPLAY_BURST_LIFETIMES", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind",
@@ -190,9 +190,10 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     order = np.argsort(times, kind="stable")
     ends = np.searchsorted(events["t"], times[order], side="right")
     start = 0
-    for i, end in zip(order, ends):
-        if end > start:
-            image.process(events[start:end], lifetimes[start:end])
-            start = end
-        out[i] = image.image_at(times[i])
+    with validated(events, sensor_size):  # slices of checked events: each chunk's check is O(1)
+        for i, end in zip(order, ends):
+            if end > start:
+                image.process(events[start:end], lifetimes[start:end])
+                start = end
+            out[i] = image.image_at(times[i])
     return out

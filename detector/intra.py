@@ -235,7 +235,7 @@ import numpy as np
 from evedge._validate import check_bool, check_positive
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _fit_windows, _intra_stream, _scratch
+from ._intra_kernels import _fit_windows, _intra_stream, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
@@ -489,6 +489,7 @@ class IntraPixelLifetime:
         self.params = _check_params(params)
         self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
+        self._scratch = scratch_arrays(self.params.window_size**2)  # the serial kernel's, reused by every chunk
         self.reset()
 
     def reset(self) -> None:
@@ -523,8 +524,8 @@ class IntraPixelLifetime:
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
-                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, False, per_pol, half, *args[3:],
-                          lt, vx, vy, valid, *_scratch(pr.window_size**2))
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, False, per_pol, half,
+                          *args[3:], lt, vx, vy, valid, *self._scratch)
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))

@@ -17,8 +17,9 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._checks import check_events, check_sensor_size
+from ._checks import check_events, check_sensor_size, validated
 from ._tiles import check_n_tiles
+from .buffer import EventBuffer
 from .edges import EdgeImage
 from .protocols import METHODS
 from .result import LIFETIME_DTYPE, empty_lifetimes
@@ -135,11 +136,12 @@ def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None) ->
     entry = METHODS.get(filter_name, kind="filter")
     kw = method_params(filter_name, params)
     events = check_events(events, sensor_size)
-    if "keep_mask" in entry.metadata:
-        return np.asarray(entry.metadata["keep_mask"](events, sensor_size, **kw), dtype=bool)
-    flt = entry.factory(sensor_size, **kw)
-    released = np.concatenate([np.asarray(flt.process(events), dtype=EVENT_DTYPE),
-                               np.asarray(flt.flush(), dtype=EVENT_DTYPE)])
+    with validated(events, sensor_size):  # the filter's own check is then O(1)
+        if "keep_mask" in entry.metadata:
+            return np.asarray(entry.metadata["keep_mask"](events, sensor_size, **kw), dtype=bool)
+        flt = entry.factory(sensor_size, **kw)
+        released = np.concatenate([np.asarray(flt.process(events), dtype=EVENT_DTYPE),
+                                   np.asarray(flt.flush(), dtype=EVENT_DTYPE)])
     mask = np.zeros(events.shape[0], bool)
     j = 0
     for r in released:
@@ -176,7 +178,8 @@ def edge_frames_of(method: str, events: np.ndarray, sensor_size, times_us, param
     start = 0
     for i, end in zip(order, ends):
         if end > start:
-            det.process(events[start:end])
+            with validated(events, sensor_size):  # slices of checked events: the detector's check is O(1)
+                det.process(events[start:end])
             start = end
         img = np.asarray(det.image_at(int(times[i])))
         if img.shape != sensor_size.shape:
@@ -254,11 +257,13 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     n_tiles = check_n_tiles(n_tiles, sensor_size.height)
     flt = _default_filter(method, use_buffer, filter)
     estimator = make_method(method, sensor_size, _with_tiles(method, params, n_tiles), kind="estimator")
-    events = check_events(events, sensor_size)
-    kept = (keep_mask(flt, events, sensor_size, _with_tiles(flt, buffer_params, n_tiles)) if flt
-            else np.ones(events.shape[0], bool))
-    sub = events[kept] if flt else events
-    est = _check_estimate(method, estimator.process(sub), sub.shape[0])
+    events = check_events(events, sensor_size)  # the one O(n) check: the stages' own checks are O(1)
+    with validated(events, sensor_size):
+        kept = (keep_mask(flt, events, sensor_size, _with_tiles(flt, buffer_params, n_tiles)) if flt
+                else np.ones(events.shape[0], bool))
+        sub = events[kept] if flt else events
+        with validated(sub, sensor_size):  # a subset, in order, of checked events
+            est = _check_estimate(method, estimator.process(sub), sub.shape[0])
     lifetimes = empty_lifetimes(events.shape[0])
     lifetimes[kept] = est
     return DetectionResult(lifetimes, kept)
@@ -301,6 +306,8 @@ class Detector:
         self.use_buffer = self.filter_name is not None
         self.buffer = make_method(self.filter_name, self.sensor_size, buffer_params, kind="filter") \
             if self.filter_name else None
+        # the built-in buffer releases, in order, events it took as checked chunks: no check of its output
+        self._own_buffer = type(self.buffer) is EventBuffer
         self.estimator = make_method(method, self.sensor_size, params, kind="estimator")
         self.edges = EdgeImage(self.sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
 
@@ -311,29 +318,34 @@ class Detector:
         self.estimator.reset()
         self.edges.reset()
 
-    def _run(self, released: np.ndarray):
-        lifetimes = _check_estimate(self.method, self.estimator.process(released), released.shape[0])
-        self.edges.process(released, lifetimes)
+    def _run(self, released: np.ndarray, checked: bool = False):
+        if not checked:  # the filter's output, checked once for the estimator and the edge image
+            released = check_events(released, self.sensor_size, name=f"events released by filter {self.filter_name!r}")
+        with validated(released, self.sensor_size):
+            lifetimes = _check_estimate(self.method, self.estimator.process(released), released.shape[0])
+            self.edges.process(released, lifetimes)
         return released, lifetimes
 
     def process(self, events: np.ndarray):
         """Feed a time-sorted chunk; return ``(released_events, lifetimes)``."""
         events = check_events(events, self.sensor_size, name="chunk")
         if self.buffer is None:
-            return self._run(events)
-        return self._run(self.buffer.process(events))
+            return self._run(events, checked=True)
+        with validated(events, self.sensor_size):
+            released = self.buffer.process(events)
+        return self._run(released, self._own_buffer)
 
     def advance_to(self, t_us: int):
         """No event before ``t_us`` will come: release what the filter has decided; ``(events, lifetimes)``."""
         if self.buffer is None or not hasattr(self.buffer, "advance_to"):
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
-        return self._run(self.buffer.advance_to(t_us))
+        return self._run(self.buffer.advance_to(t_us), self._own_buffer)
 
     def flush(self):
         """End of stream: release what the filter still holds; ``(events, lifetimes)``."""
         if self.buffer is None:
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
-        return self._run(self.buffer.flush())
+        return self._run(self.buffer.flush(), self._own_buffer)
 
     def image_at(self, t_us) -> np.ndarray:
         """Edge map at ``t_us`` (see :meth:`EdgeImage.image_at`)."""

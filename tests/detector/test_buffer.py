@@ -169,3 +169,12 @@ def test_bad_inputs():
     with pytest.raises(ValueError, match="previous chunk"):
         buf.process(make_events([1], [1], [1], [True]))
     assert filter_events(np.empty(0, EVENT_DTYPE), S).shape == (0,)
+
+
+def test_empty_state_in_numpy_equals_the_kernels():
+    """The serial buffer's initial state (numpy, no compilation) has the bytes of the strips' (numba)."""
+    from evedge.detector._buffer_kernels import empty_state, new_state
+
+    for w, h in ((1, 1), (3, 7), (128, 128), (240, 180)):
+        a, b = empty_state(w, h), new_state(w, h)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes()

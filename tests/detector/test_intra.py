@@ -722,3 +722,12 @@ def test_border_px_reports_no_estimate_near_the_edge_and_changes_nothing_else():
     assert a["valid"][near].any() and not b["valid"][near].any()
     assert np.isnan(b["lifetime_us"][near]).all()
     assert a[~near].tobytes() == b[~near].tobytes()
+
+
+def test_scratch_arrays_in_numpy_equal_the_kernels():
+    """The serial estimator's scratch arrays (numpy, no compilation) have the bytes of the strips' (numba)."""
+    from evedge.detector._intra_kernels import _scratch, scratch_arrays
+
+    for nn in (9, 25, 49, 121, 169):
+        for a, b in zip(scratch_arrays(nn), _scratch(nn)):
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
