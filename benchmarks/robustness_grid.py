@@ -287,6 +287,36 @@ def _summary(rows, methods) -> None:
         print(f"  cells where intra's med > half Mueggler's (Mueggler sig >= 20 %): {len(bad)} of "
               f"{sum(r['mueggler_sig'] >= 0.2 for r in rows)}")
     _noise_measure(rows, methods)
+    _group_medians(rows, methods)
+
+
+GROUPS = {
+    "clean, r >= 3": lambda r: r["noise_hz"] in (0.0, "") and r["r"] >= 3,
+    "clean, r < 3": lambda r: r["noise_hz"] in (0.0, "") and r["r"] < 3,
+    "noise 0.5-5 Hz": lambda r: r["noise_hz"] not in (0.0, ""),
+}
+
+
+def _group_medians(rows, methods) -> None:
+    """Medians over each group's cells, as a Markdown table (the README's)."""
+    keys = ("med", "over2x", "sig", "noise", "noise_floor", "first")
+    print("\nmedians over the cells of each group (Markdown):")
+    print("| group (cells) | method | median error | > 2x off | signal estimated | noise given a lifetime | "
+          "noise floor | first 0.1 s error |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, pred in GROUPS.items():
+        sel = [r for r in rows if pred(r)]
+        if not sel:
+            continue
+        for i, m in enumerate(methods):
+            vals = []
+            for k in keys:
+                v = np.array([r[f"{m}_{k}"] for r in sel], float)
+                v = v[np.isfinite(v)]
+                digits = 2 if k == "over2x" else 1
+                vals.append(f"{100 * np.median(v):.{digits}f} %" if v.size else "")
+            label = f"{name} ({len(sel)})" if i == 0 else ""
+            print(f"| {label} | {m} | " + " | ".join(vals) + " |")
 
 
 def _noise_measure(rows, methods) -> None:
@@ -305,8 +335,8 @@ def _noise_measure(rows, methods) -> None:
     if "mueggler" in methods:
         ok = [r for r in noisy if r["intra_noise"] <= 2 * r["mueggler_noise"]]
         both = [r for r in ok if r["intra_noise"] <= 0.10]
-        print(f"  intra <= 2x Mueggler's in {len(ok)}/{len(noisy)} cells (and <= 10 %: {len(both)}); Mueggler's "
-              f"signal estimated there: median {100 * np.median([r['mueggler_sig'] for r in noisy]):.1f} % (intra "
+        print(f"  intra <= 2x Mueggler's in {len(ok)}/{len(noisy)} cells (and <= 10 %: {len(both)}); signal estimated "
+              f"in the noisy cells: Mueggler median {100 * np.median([r['mueggler_sig'] for r in noisy]):.1f} % (intra "
               f"{100 * np.median([r['intra_sig'] for r in noisy]):.1f} %)")
 
 

@@ -420,7 +420,7 @@ def robust_params(**overrides) -> IntraParams:
 
 
 #: The noise rules measured on ``benchmarks/robustness_grid.py`` (module notes, "noise"), all together.
-NOISE_RULES = {"newer_share_max": 0.25, "burst_span_lifetimes": 1.5, "lifetime_agreement": 2.0}
+NOISE_RULES = {"newer_share_max": 0.25, "lifetime_agreement": 2.0}
 
 
 def noise_params(**overrides) -> IntraParams:
@@ -430,7 +430,7 @@ def noise_params(**overrides) -> IntraParams:
     --------
     >>> p = noise_params()
     >>> (p.split_gap_ratio, p.event_on_plane, p.newer_share_max, p.burst_span_lifetimes, p.lifetime_agreement)
-    (3.0, 1.0, 0.25, 1.5, 2.0)
+    (3.0, 1.0, 0.25, 0.0, 2.0)
     """
     return IntraParams(**{**ROBUST, **NOISE_RULES, **overrides})
 
