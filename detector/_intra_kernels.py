@@ -139,7 +139,7 @@ def _degenerate(wf, n, lo, hi, min_points):
 
 
 @njit(cache=True)
-def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
+def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points, jump_check):
     """The current event's cluster by single linkage in time (``split_gap_ratio > 0``), replacing 2-means.
 
     The paper's 2-means (initial centroids: the window minimum and the current
@@ -165,6 +165,9 @@ def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
     lo = 0.0
     hi = 0.0
     big = min_gap_us  # largest gap taken so far (at least the timing noise)
+    g1 = 0.0  # the largest and second-largest gaps taken, and whether the largest was forced
+    g2 = 0.0
+    f1 = False
     for _ in range(n):
         below = -np.inf
         above = np.inf
@@ -179,8 +182,15 @@ def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
         g = min(g_below, g_above)
         if not math.isfinite(g):
             break
-        if not (g <= gap_ratio * big or _degenerate(wf, n, lo, hi, min_points)):
+        forced = not g <= gap_ratio * big
+        if forced and not _degenerate(wf, n, lo, hi, min_points):
             break
+        if g > g1:
+            g2 = g1
+            g1 = g
+            f1 = forced
+        elif g > g2:
+            g2 = g
         big = max(big, g)
         if g_below <= g_above:
             lo = below
@@ -189,11 +199,28 @@ def _linkage_split(wf, wi, n, gap_ratio, min_gap_us, min_points):
     for i in range(n):
         v = wf[_DT, i]
         wi[_LAB, i] = 1 if lo <= v <= hi else 0
+    return _jump_ok(g1, g2, f1, gap_ratio, jump_check)
+
+
+@njit(cache=True)
+def _jump_ok(g1, g2, forced, gap_ratio, jump_check):
+    """Whether a linkage cluster is kept: its largest gap ``g1``, if forced, is at most ``gap_ratio g2``.
+
+    ``g2`` is the second-largest gap taken. A forced gap (taken only because the
+    cluster fixed no plane yet) is legitimate when it is one step of the edge's
+    ramp (the current event's own column, then the next column behind it, about
+    one lifetime away) and other steps of that size follow; a forced jump many
+    times larger than every other gap is the jump to a stale level (pixels that
+    skipped the current passage keep the time of the one before), and a plane
+    through it is fitted on the wrong passage. ``jump_check`` False keeps every
+    cluster (as before the check).
+    """
+    return not (jump_check and forced and g1 > gap_ratio * g2)
 
 
 @njit(cache=True)
 def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
-                min_inliers, intercept, fallback, gap_ratio, on_plane, noise):
+                min_inliers, intercept, fallback, gap_ratio, on_plane, jump_check, noise):
     """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
 
     The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
@@ -287,7 +314,10 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         for i in range(n):
             wi[_LAB, i] = 1 if wi[_LAB, i] == cur else 0
     if gap_ratio > 0.0:
-        _linkage_split(wf, wi, n, gap_ratio, thr_us, min_points)
+        if not _linkage_split(wf, wi, n, gap_ratio, thr_us, min_points, jump_check):
+            for i in range(n):
+                wi[_INL, i] = 0
+            return False, np.nan, np.nan  # a forced jump to a stale level: no estimate
 
     # ---- RANSAC on the kept cluster; a second attempt on all points when it is degenerate
     nin = -1
@@ -500,7 +530,39 @@ def _log_fail(stop_prob):
 
 
 @njit(cache=True)
-def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
+def _stale_cutoff(tk, prev, prev_lt, frac, half):
+    """Oldest SAE time still a window point of a new burst at ``tk`` (``stale_fraction``; ``_NEVER``: all are).
+
+    ``prev`` is the time of the pixel's previous event of the same polarity: the
+    same edge cannot pass the pixel twice in between, so a neighbour's time older
+    than ``frac`` of that interval before ``tk`` (the midpoint at 0.5) is from an
+    earlier passage (a stale level of a pixel that skipped this one).
+    """
+    if not frac > 0.0:
+        return _NEVER
+    gap = frac * float(tk - prev)
+    if gap <= 2.0 * half * prev_lt:  # False when prev_lt is NaN (no estimate)
+        return _NEVER
+    return tk - np.int64(gap)
+
+
+@njit(cache=True)
+def _history_short(tk, a, b, reach_px, t_start):
+    """Whether the plane ``dt = a dx + b dy`` through ``(0, 0, tk)`` reaches before ``t_start``.
+
+    ``reach_px`` is ``startup_reach`` times the window's half-size: the oldest
+    window cell of the plane is ``half (|a| + |b|)`` before ``tk``. When that is
+    before the stream's first event (``t_start``; ``_NEVER`` = no start-up
+    rule) the pixels there could not hold the plane's times yet (they never
+    fired, or fired at the start with whatever phase the edge had reached), and
+    the fit rests on a truncated history: on the simulated scenes such estimates
+    are short by 30-80 %, so the reach of the (short) estimate itself is scaled.
+    """
+    return float(tk) - reach_px * (abs(a) + abs(b)) < float(t_start)
+
+
+@njit(cache=True)
+def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
     """The window points around pixel ``(xk, yk)`` of the SAE plane at ``base``, relative to time ``tk``.
 
     Fills ``wf[_DX/_DY/_DT]`` and ``wi[_IT]``; never-fired pixels and pixels outside
@@ -514,7 +576,7 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
         oy = yy - yk
         for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
             v = sae[row + xx]
-            if v == _NEVER or (xx == xk and oy == 0):
+            if v == _NEVER or v < oldest or (xx == xk and oy == 0):
                 continue
             d = v - tk
             wf[_DX, n] = xx - xk
@@ -528,8 +590,8 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half):
 @njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, dec_lt, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, noise, out_lt, out_vx,
-                  out_vy, out_valid, wf, wi):
+                  min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
+                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -576,7 +638,13 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
     Border rule (``border > 0``): an event closer than ``border`` px to the sensor
     edge (its window is clipped) is reported without estimate; its fit still
-    sets the burst state of its pixel, as any other event's.
+    sets the burst state of its pixel, as any other event's. The start-up rule
+    (``t_start``, the stream's first event time; ``_NEVER`` = off) does the same
+    for a fit whose plane reaches before ``t_start`` in the window
+    (:func:`_history_short`).
+
+    Stale cutoff (``stale_frac > 0``): an event that starts a burst ignores the
+    window times older than :func:`_stale_cutoff`.
     """
     log_fail = _log_fail(stop_prob)
     publish = dec.shape[0] > 0
@@ -623,13 +691,16 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             else:
                 tk = t_ev
                 sae[si] = tk
-            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half)
+            oldest = _NEVER
+            if not (cont or trial) and prev_pol[si] == pk:
+                oldest = _stale_cutoff(tk, prev_t[si], prev_lt[si], stale_frac, half)
+            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)
             big = 0
             for i in range(n):
                 big = max(big, abs(wi[_IT, i]))
             ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
                                    thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
-                                   fallback, gap_ratio, on_plane, noise)
+                                   fallback, gap_ratio, on_plane, jump_check, noise)
             if not trial:
                 break
             trial = False
@@ -643,7 +714,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
                                   math.sqrt(a * a + b * b), agree)
         # border rule: the fit still feeds the burst state below, but is not reported
-        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border):
+        # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
+        if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border
+                   or _history_short(tk, a, b, reach_px, t_start)):
             out_lt[j] = math.sqrt(a * a + b * b)
             out_vx[j] = np.nan
             out_vy[j] = np.nan
@@ -675,7 +748,8 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane, noise):
+                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane, jump_check,
+                 noise):
     """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -706,7 +780,7 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
         # float times: 2-means sums them in float64 (exact=False)
         ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
                                max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
-                               gap_ratio, on_plane, noise)
+                               gap_ratio, on_plane, jump_check, noise)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

@@ -115,9 +115,9 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 @njit(parallel=True, cache=True)
 def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo,
-                    own_hi, dec, dec_lt, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
-                    min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, noise,
-                    out_lt, out_vx, out_vy, out_valid):
+                    own_hi, dec, dec_lt, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials,
+                    stop_prob, min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border,
+                    jump_check, stale_frac, t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid):
     """``n_threads`` workers share the strips: each takes any free strip, runs it until it needs a
     decision not yet taken (or to its end), gives it back, and moves on.
 
@@ -152,8 +152,8 @@ def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, pr
                                       prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
                                       dec, dec_lt, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
                                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
-                                      startup, border, noise, out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b],
-                                      wf, wi)
+                                      startup, border, jump_check, stale_frac, t_start, reach_px, noise,
+                                      out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b], wf, wi)
                     _store_release(cursor, s, j)
                     _store_release(busy, s, 0)
                     progressed = progressed or j > j0
@@ -172,7 +172,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
     ``burst`` to ``noise`` without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
-    fallback, seed, gap_ratio, on_plane, startup, border, noise``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
+    fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac, t_start,
+    reach_px, noise``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
     shared by ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`).
     """
     half = kernel_args[2]

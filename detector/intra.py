@@ -295,10 +295,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evedge._validate import check_bool, check_positive
+from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _fit_windows, _intra_stream, scratch_arrays
+from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .result import empty_lifetimes
@@ -379,6 +379,26 @@ class IntraParams:
         clipped, get no estimate (their fit still sets their pixel's burst
         state); Mueggler et al.'s code skips 2 px. Default 0 (the paper says
         nothing). See the module notes ("border").
+    split_jump_check : bool
+        With ``split_gap_ratio > 0``: no estimate when the largest time gap the
+        linkage cluster took was forced (taken only because the cluster fixed no
+        plane yet) and is more than ``split_gap_ratio`` times every other gap it
+        took: a jump to a stale level, not a step of the edge's ramp (default
+        False, as before). See the module notes ("stale levels").
+    stale_fraction : float
+        In [0, 1). Above 0, an event that starts a burst ignores the window's
+        times older than ``stale_fraction`` of the interval since its pixel's
+        previous event of the same polarity (an earlier passage: the same edge
+        cannot pass the pixel twice in between); 0.5 is the midpoint. Default 0
+        (the paper: every time is a point). Streaming only (a hand-made window
+        of :func:`fit_window` has no history). See the module notes ("stale levels").
+    startup_reach : float
+        >= 0. Above 0, no estimate while the window's history is too short: when
+        ``startup_reach`` times the fitted plane's reach in the window (its oldest
+        cell is ``half (|a| + |b|)`` before the event) goes back before the first
+        event the estimator was given since its last reset (the fit still sets
+        the pixel's burst state, as with ``border_px``). Default 0 (the paper).
+        Streaming only. See the module notes ("start-up").
     newer_share_max : float
         In (0, 1]. No estimate when more than this share of the window points
         newer than the fitted plane or on it (its inlier band) are newer than
@@ -417,6 +437,9 @@ class IntraParams:
     event_on_plane: float = 0.0
     burst_startup: bool = True
     border_px: int = 0
+    split_jump_check: bool = False
+    stale_fraction: float = 0.0
+    startup_reach: float = 0.0
     newer_share_max: float = 1.0
     burst_span_lifetimes: float = 0.0
     lifetime_agreement: float = 0.0
@@ -446,6 +469,8 @@ class IntraParams:
         check_positive(own, "split_gap_ratio", self.split_gap_ratio, allow_zero=True)
         check_positive(own, "border_px", self.border_px, integer=True, allow_zero=True)
         check_positive(own, "event_on_plane", self.event_on_plane, allow_zero=True)
+        check_positive(own, "startup_reach", self.startup_reach, allow_zero=True)
+        check_real(own, "stale_fraction", self.stale_fraction, 0.0, 1.0, low_open=False, high_open=True)
         check_positive(own, "newer_share_max", self.newer_share_max)
         check_positive(own, "burst_span_lifetimes", self.burst_span_lifetimes, allow_zero=True)
         check_positive(own, "lifetime_agreement", self.lifetime_agreement, allow_zero=True)
@@ -456,18 +481,19 @@ class IntraParams:
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
             check_bool(own, name, getattr(self, name))
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
-                     "split_gap_ratio", "event_on_plane", "newer_share_max", "burst_span_lifetimes",
-                     "lifetime_agreement"):
+                     "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
+                     "burst_span_lifetimes", "lifetime_agreement"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
-ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True}
+ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
+          "stale_fraction": 0.5, "startup_reach": 1.0}
 
 
 def robust_params(**overrides) -> IntraParams:
@@ -563,6 +589,7 @@ class IntraPixelLifetime:
         self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
         self._n_seen = 0
         self._last_time: int | None = None
+        self._t_start: int | None = None  # the first event's time (start-up rule)
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
@@ -579,10 +606,14 @@ class IntraPixelLifetime:
         valid = np.empty(n, dtype=bool)
         pr = self.params
         w, h = self.sensor_size.width, self.sensor_size.height
+        if self._t_start is None:
+            self._t_start = int(t[0])
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
                 pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
-                pr.burst_startup, pr.border_px, noise_args(pr))
+                pr.burst_startup, pr.border_px, pr.split_jump_check, pr.stale_fraction,
+                self._t_start if pr.startup_reach > 0 else _NEVER, pr.startup_reach * (pr.window_size // 2),
+                noise_args(pr))
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -699,7 +730,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 params.split_gap_ratio, params.event_on_plane, noise_args(params))
+                 params.split_gap_ratio, params.event_on_plane, params.split_jump_check, noise_args(params))
     return a, b, ok, inl.reshape(k, side, side)
 
 

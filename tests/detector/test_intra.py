@@ -56,11 +56,16 @@ def ref_two_means(dts):
     return [lab == cur for lab in labels]
 
 
-def ref_linkage(points, ratio, min_gap, min_points):
-    """Single linkage in time from the current event (dt = 0); forced while the cluster fixes no plane."""
+def ref_linkage(points, ratio, min_gap, min_points, jump_check=False):
+    """Single linkage in time from the current event (dt = 0); forced while the cluster fixes no plane.
+
+    None when ``jump_check`` rejects the cluster: its largest gap taken was forced and is more
+    than ``ratio`` times the second largest.
+    """
     dts = [q[2] for q in points]
     lo = hi = 0.0
     big = min_gap
+    taken = []  # (gap, forced) in the order taken
 
     def degenerate():
         kept = [(q[0], q[1]) for q in points if lo <= q[2] <= hi]
@@ -73,11 +78,19 @@ def ref_linkage(points, ratio, min_gap, min_points):
         gap = min(lo - below, above - hi)
         if not math.isfinite(gap) or not (gap <= ratio * big or degenerate()):
             break
+        taken.append((gap, not gap <= ratio * big))
         big = max(big, gap)
         if lo - below <= above - hi:
             lo = below
         else:
             hi = above
+    if jump_check and taken:
+        g1 = max(g for g, _ in taken)
+        forced = next(f for g, f in taken if g == g1)  # the first gap of that size
+        rest = sorted((g for g, _ in taken), reverse=True)
+        g2 = rest[1] if len(rest) > 1 else 0.0
+        if forced and g1 > ratio * g2:
+            return None
     return [lo <= v <= hi for v in dts]
 
 
@@ -85,7 +98,9 @@ def ref_fit(points, p: IntraParams, seed, g, delta):
     """points: list of (dx, dy, dt). Returns (ok, a, b, inlier flags of the points)."""
     kept = ref_two_means([q[2] for q in points])
     if p.split_gap_ratio > 0:
-        kept = ref_linkage(points, p.split_gap_ratio, p.inlier_threshold_us, p.min_points)
+        kept = ref_linkage(points, p.split_gap_ratio, p.inlier_threshold_us, p.min_points, p.split_jump_check)
+        if kept is None:  # a forced jump to a stale level: no estimate, no fallback
+            return False, math.nan, math.nan, [False] * len(points)
     res = ref_ransac(points, kept, p, seed, g, delta)
     if res == "degenerate" and p.fallback_all_points:
         res = ref_ransac(points, [True] * len(points), p, seed, g, delta)
@@ -183,6 +198,7 @@ def ref_stream(events, size, p: IntraParams):
     half = p.window_size // 2
     out = []
     burst = p.burst_lifetimes
+    t_start = int(events[0]["t"]) if len(events) else 0
     for g, e in enumerate(events):
         x, y, t_ev, pol = int(e["x"]), int(e["y"]), int(e["t"]), bool(e["p"])
         plane = pol if p.per_polarity else 0
@@ -193,17 +209,29 @@ def ref_stream(events, size, p: IntraParams):
         trial = p.burst_startup and burst > 0 and not cont and ppol == pol and math.isnan(plt)
         inliers = []  # pixels of the last fit's inliers
 
-        def fit(t):
+        def fit(t, oldest=None):
             pts, cells = [], []
             for oy in range(-half, half + 1):
                 for ox in range(-half, half + 1):
                     q = (plane, x + ox, y + oy)
                     if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
-                        pts.append((float(ox), float(oy), float(sae[q] - t)))
-                        cells.append(q)
+                        if oldest is None or sae[q] >= oldest:
+                            pts.append((float(ox), float(oy), float(sae[q] - t)))
+                            cells.append(q)
             ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px)
             inliers[:] = [q for q, f in zip(cells, flags) if f]
             return ok, a, b
+
+        def stale_cutoff():
+            """stale_fraction: times older than this fraction of the interval since the pixel's
+            previous same-polarity event are an earlier passage (unless that event's lifetime
+            says the window could still reach them)."""
+            if not (p.stale_fraction > 0 and ppol == pol):
+                return None
+            gap = p.stale_fraction * float(t_ev - pt)
+            if gap <= 2.0 * half * plt:  # False for NaN
+                return None
+            return t_ev - int(gap)
 
         if cont or trial:
             ok, a, b = fit(sae[key])  # fitted at the burst's first time
@@ -213,10 +241,10 @@ def ref_stream(events, size, p: IntraParams):
                     cont = True
                 else:
                     sae[key] = t_ev
-                    ok, a, b = fit(t_ev)
+                    ok, a, b = fit(t_ev, stale_cutoff())
         else:
             sae[key] = t_ev
-            ok, a, b = fit(t_ev)
+            ok, a, b = fit(t_ev, stale_cutoff())
         if ok and p.lifetime_agreement:
             known = [prev[q][1] for q in inliers if q in prev and not math.isnan(prev[q][1])]
             if len(known) >= 3:
@@ -226,6 +254,9 @@ def ref_stream(events, size, p: IntraParams):
         lt = math.sqrt(a * a + b * b) if ok else math.nan
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
+        t_fit = sae[key]  # the burst's first time (or the event's own)
+        if ok and p.startup_reach > 0 and t_fit - p.startup_reach * half * (abs(a) + abs(b)) < t_start:
+            inside = False  # start-up rule: the plane reaches before the first event; reported as no estimate
         if ok and inside:
             g2 = a * a + b * b
             out.append((lt, a / g2 * 1e6, b / g2 * 1e6, True))
@@ -273,6 +304,7 @@ def random_windows(n, side, rng):
      IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
      IntraParams(event_on_plane=1.0),
      IntraParams(split_gap_ratio=3.0, event_on_plane=1.0),
+     IntraParams(split_gap_ratio=3.0, split_jump_check=True),
      IntraParams(newer_share_max=0.2), IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25)],
 )
 def test_fit_windows_matches_reference(side, params):
@@ -309,10 +341,12 @@ def test_two_means_reference_properties():
 
 
 @pytest.mark.parametrize("per_polarity", [True, False])
-def test_stream_matches_reference(random_events, per_polarity):
+@pytest.mark.parametrize("rules", [{}, {"split_gap_ratio": 3.0, "split_jump_check": True, "stale_fraction": 0.5,
+                                         "startup_reach": 1.0}])
+def test_stream_matches_reference(random_events, per_polarity, rules):
     size = SensorSize(9, 7)
     ev = random_events(400, size.width, size.height, duration_us=30_000, rng=3)
-    params = IntraParams(per_polarity=per_polarity, min_inliers=4, min_points=4, seed=5, border_px=1)
+    params = IntraParams(per_polarity=per_polarity, min_inliers=4, min_points=4, seed=5, border_px=1, **rules)
     got = estimate_lifetimes(ev, size, params)
     want = ref_stream(ev, size, params)
     assert_lifetimes_close(got, want)
@@ -731,3 +765,108 @@ def test_scratch_arrays_in_numpy_equal_the_kernels():
     for nn in (9, 25, 49, 121, 169):
         for a, b in zip(scratch_arrays(nn), _scratch(nn)):
             assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def test_jump_check_refuses_a_forced_jump_to_a_stale_level():
+    """The event and three current neighbours (one column behind it, spread but too few for a plane)
+    and, ahead, the previous passage 19 lifetimes older: the linkage has to force the jump to the
+    stale level; with the check that is no estimate. A clean ramp, whose one forced step (own column
+    to the next) is followed by steps of the same size, keeps its exact estimate."""
+    lt = 1000.0
+    w = np.full((5, 5), np.nan)
+    w[1:4, 1] = -lt  # current passage: the column behind, three rows
+    w[:, 3] = lt - 20 * lt  # ahead: the previous passage (one period = 20 lifetimes earlier)
+    w[:, 4] = 2 * lt - 20 * lt
+    w[2, 2] = 0.0
+    loose = fit_window(w, IntraParams(split_gap_ratio=3.0))
+    assert loose.ok and loose.lifetime_us > 5 * lt  # a plane through the stale points
+    assert not fit_window(w, IntraParams(split_gap_ratio=3.0, split_jump_check=True)).ok
+    pts = [(float(c - 2), float(r - 2), float(w[r, c])) for r in range(5) for c in range(5)
+           if (r, c) != (2, 2) and not np.isnan(w[r, c])]
+    assert ref_linkage(pts, 3.0, 50.0, 5, jump_check=True) is None
+    ramp = _ramp_with_stale_levels(current_cols=3)
+    ramp[:, 3:] = np.nan
+    for p in (IntraParams(split_gap_ratio=3.0), IntraParams(split_gap_ratio=3.0, split_jump_check=True)):
+        fit = fit_window(ramp, p)
+        assert fit.ok and fit.lifetime_us == pytest.approx(lt, rel=1e-9)
+
+
+def _passages(size=14, lifetime_us=1000, period_us=20_000, n=3, skip=0.55, rng=3):
+    """A vertical edge (one event per pixel, polarity on) crossing every column at ``x * lifetime``,
+    and again every period; after the first passage each pixel misses a passage with probability
+    ``skip`` (as at low contrast, where the simulated pixel skips about half of them)."""
+    gen = np.random.default_rng(rng)
+    xs, ys, ts = [], [], []
+    for passage in range(n):
+        for x in range(size):
+            for y in range(size):
+                if passage > 0 and gen.random() < skip:
+                    continue
+                xs.append(x)
+                ys.append(y)
+                ts.append(passage * period_us + x * lifetime_us + (7 * x + 3 * y) % 5)  # a few us of jitter
+    order = np.argsort(ts, kind="stable")
+    return make_events(np.array(xs)[order], np.array(ys)[order], np.array(ts)[order], np.ones(len(ts), bool))
+
+
+def test_stale_fraction_on_an_edge_whose_pixels_skip_passages():
+    """Second passage, 55 % of the pixels skipped it and hold the first passage's times, one period (20
+    lifetimes) old. Without the rule some planes run through them (up to 14x too slow); with
+    ``stale_fraction = 0.5`` (times older than half the pixel's interval since its previous event are
+    not points) every estimate is within 1 % of the truth. With a third passage a pixel that skipped
+    the second keeps a cutoff two periods back and some stale times stay in: fewer estimates are off,
+    not none. The kernel equals the slow reference throughout."""
+    size = SensorSize(14, 14)
+
+    def off_share(ev, **kw):
+        p = IntraParams(**kw)
+        got = estimate_lifetimes(ev, size, p)
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+        later = (ev["t"] >= 20_000) & (ev["x"] >= 2) & (ev["x"] < 12) & (ev["y"] >= 2) & (ev["y"] < 12)
+        v = got["valid"] & later
+        assert v.sum() > 0.8 * later.sum()
+        ratio = got["lifetime_us"][v] / 1000.0
+        return np.mean((ratio > 2) | (ratio < 0.5)), np.max(np.abs(ratio - 1))
+
+    ev = _passages(n=2, skip=0.55, rng=1)
+    for base in ({}, {"split_gap_ratio": 3.0}):
+        assert off_share(ev, **base)[0] > 0.1
+        assert off_share(ev, stale_fraction=0.5, **base)[1] < 0.01
+    ev = _passages(n=3, skip=0.5, rng=4)
+    assert off_share(ev)[0] > 0.2 and off_share(ev, stale_fraction=0.5)[0] < 0.01
+
+
+def test_stale_cutoff_known_values():
+    """The cutoff is ``frac`` of the interval back; not applied (``_NEVER``) when the previous event's
+    lifetime could reach that far within the window (``frac * interval <= 2 * half * lifetime``)."""
+    from evedge.detector._intra_kernels import _NEVER, _stale_cutoff
+
+    assert _stale_cutoff(100_000, 80_000, 1000.0, 0.5, 2) == 90_000
+    assert _stale_cutoff(100_000, 80_000, math.nan, 0.5, 2) == 90_000  # no estimate: nothing says otherwise
+    assert _stale_cutoff(100_000, 80_000, 1000.0, 0.25, 2) == 95_000
+    assert _stale_cutoff(100_000, 80_000, 2500.0, 0.5, 2) == _NEVER  # 10000 <= 2 * 2 * 2500
+    assert _stale_cutoff(100_000, 80_000, 1000.0, 0.0, 2) == _NEVER  # off
+
+
+def test_startup_reach_no_estimate_while_the_history_is_too_short():
+    """An edge (lifetime 1000 us, 14 columns) starting at t = 0: the plane of an event at column x reaches
+    ``half * |a| = 2000 us`` back, before the first event while ``x * 1000 < reach * 2000``. Those events
+    get no estimate, every later one keeps exactly the estimate it had without the rule; chunked = one-shot
+    (the start is the first event since the reset), and the reference agrees."""
+    size = SensorSize(14, 14)
+    ev = _passages(n=1)
+    plain = estimate_lifetimes(ev, size, IntraParams())
+    for reach in (1.0, 2.0):
+        p = IntraParams(startup_reach=reach)
+        got = estimate_lifetimes(ev, size, p)
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+        early = ev["t"] - reach * 2 * plain["lifetime_us"] < ev["t"][0]  # the plane's reach, from the plain fit
+        assert not got["valid"][early & plain["valid"]].any()
+        late = ~early & plain["valid"]
+        assert late.sum() > 0.3 * ev.size
+        assert got[late].tobytes() == plain[late].tobytes()
+        est = IntraPixelLifetime(size, p)
+        chunked = np.concatenate([est.process(c) for c in np.array_split(ev, 5)])
+        assert chunked.tobytes() == got.tobytes()
+        est.reset()
+        assert est.process(ev[ev["t"] >= 5000]).tobytes() != got[ev["t"] >= 5000].tobytes()  # a new start

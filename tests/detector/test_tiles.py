@@ -63,6 +63,8 @@ def test_estimator_strips_on_the_real_recording(stripes_events):
                                     IntraParams(burst_lifetimes=2.0, seed=5),
                                     IntraParams(split_gap_ratio=1.5, event_on_plane=1.0),
                                     IntraParams(burst_startup=True, border_px=2),
+                                    IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
+                                                startup_reach=1.0),
                                     IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25,
                                                 burst_span_lifetimes=1.5, lifetime_agreement=2.0)])
 def test_estimator_strips_other_parameters(shapes, params):
