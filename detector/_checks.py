@@ -54,7 +54,8 @@ def validated(events: np.ndarray, sensor_size: SensorSize):
     stays honest: ``events`` is made read-only for the block (and writeable
     again after it, if it was), so nothing can change it between the check and
     the stages that rely on it; a stage that tries gets numpy's "read-only"
-    error. Thread-local: another thread's checks are not affected.
+    error. Thread-local: another thread's checks are not affected (blocks of two
+    threads on the same array: the first to close makes it writeable again).
 
     Examples
     --------
@@ -85,7 +86,10 @@ def validated(events: np.ndarray, sensor_size: SensorSize):
 
 
 def _is_validated(events, sensor_size: SensorSize) -> bool:
-    """Whether ``events`` is (a step-1 slice of) an array of an open :func:`validated` block on a sensor within ``sensor_size``."""
+    """Whether ``events`` is (a step-1 slice of) an array of an open :func:`validated` block.
+
+    The block's sensor must lie within ``sensor_size`` (its events are then in range).
+    """
     stack = getattr(_VALIDATED, "stack", None)
     if not stack or not isinstance(events, np.ndarray) or events.dtype != EVENT_DTYPE or events.ndim != 1:
         return False

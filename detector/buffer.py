@@ -145,8 +145,8 @@ class EventBuffer:
         self._make_room(m)
         a, b = self._end, self._end + m
         self._ev[a:b] = events
-        for col, values in zip(self._cols, columns(events)):
-            col[a:b] = values
+        for col, field in zip(self._cols, "xytp"):
+            col[a:b] = events[field]  # converted to int64 in place (no temporary column)
         self._end = b  # prev and supported of the new slots are set by the kernel
         sl = slice(self._start, b)
         x, y, t, p = (col[sl] for col in self._cols)
@@ -176,7 +176,7 @@ class EventBuffer:
 
     def _release(self, r: int) -> np.ndarray:
         sl = slice(self._start, self._start + r)
-        out = self._ev[sl][self._supported[sl]]
+        out = self._ev[sl].compress(self._supported[sl])  # (faster than boolean indexing on records)
         self._start += r
         self._base_g += r
         return out

@@ -171,7 +171,7 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
             stop = min(start + _CHUNK, events.size)
             rows = table[start:stop]
             keep = kept[start:stop]
-            chunk = events[start:stop][keep]
+            chunk = events[start:stop].compress(keep)  # (faster than boolean indexing on records)
             with validated(chunk, sensor):  # a subset, in order, of checked events: the stages' checks are O(1)
                 lt = _check_estimate(method, est.process(chunk), chunk.size)
                 for name in lt.dtype.names:

@@ -298,10 +298,10 @@ import numpy as np
 from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, scratch_arrays
+from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
-from .result import empty_lifetimes
+from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
@@ -596,9 +596,9 @@ class IntraPixelLifetime:
         events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         n = events.shape[0]
-        out = empty_lifetimes(n)
         if n == 0:
-            return out
+            return empty_lifetimes(0)
+        out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
         x, y, t, p = columns(events)
         lt = np.empty(n)
         vx = np.empty(n)
@@ -610,10 +610,10 @@ class IntraPixelLifetime:
             self._t_start = int(t[0])
         args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
-                pr.refit_intercept, pr.fallback_all_points, pr.seed, pr.split_gap_ratio, pr.event_on_plane,
-                pr.burst_startup, pr.border_px, pr.split_jump_check, pr.stale_fraction,
-                self._t_start if pr.startup_reach > 0 else _NEVER, pr.startup_reach * (pr.window_size // 2),
-                noise_args(pr))
+                pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
+                off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
+                pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
+                pr.startup_reach * (pr.window_size // 2), noise_args(pr))  # options off as None: not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
@@ -730,7 +730,8 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
     _fit_windows(np.ascontiguousarray(w.reshape(-1)), side, int(seed), 0, delta, params.inlier_threshold_us,
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
-                 params.split_gap_ratio, params.event_on_plane, params.split_jump_check, noise_args(params))
+                 off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane), params.split_jump_check,
+                 noise_args(params))
     return a, b, ok, inl.reshape(k, side, side)
 
 

@@ -758,15 +758,6 @@ def test_border_px_reports_no_estimate_near_the_edge_and_changes_nothing_else():
     assert a[~near].tobytes() == b[~near].tobytes()
 
 
-def test_scratch_arrays_in_numpy_equal_the_kernels():
-    """The serial estimator's scratch arrays (numpy, no compilation) have the bytes of the strips' (numba)."""
-    from evedge.detector._intra_kernels import _scratch, scratch_arrays
-
-    for nn in (9, 25, 49, 121, 169):
-        for a, b in zip(scratch_arrays(nn), _scratch(nn)):
-            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
-
-
 def test_jump_check_refuses_a_forced_jump_to_a_stale_level():
     """The event and three current neighbours (one column behind it, spread but too few for a plane)
     and, ahead, the previous passage 19 lifetimes older: the linkage has to force the jump to the
@@ -870,3 +861,12 @@ def test_startup_reach_no_estimate_while_the_history_is_too_short():
         assert chunked.tobytes() == got.tobytes()
         est.reset()
         assert est.process(ev[ev["t"] >= 5000]).tobytes() != got[ev["t"] >= 5000].tobytes()  # a new start
+
+
+def test_scratch_arrays_in_numpy_equal_the_kernels():
+    """The serial estimator's scratch arrays (numpy, no compilation) have the bytes of the strips' (numba)."""
+    from evedge.detector._intra_kernels import _scratch, scratch_arrays
+
+    for nn in (9, 25, 49, 121, 169):
+        for a, b in zip(scratch_arrays(nn), _scratch(nn)):
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
