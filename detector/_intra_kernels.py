@@ -490,12 +490,13 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             return False, np.nan, np.nan
         if not on:
             return False, np.nan, np.nan
-        newer = noise[_NEWER]
-        if newer < 1.0:
+        if noise is not None:
             # noise rule (module _noise_kernels): the plane must not leave many recent points above it
-            c = _newer_count(wf, _DX, _DY, _DT, n, a, b, delta, thr_us, thr_rel)
-            if c > newer * (c + best_n - 1):
-                return False, np.nan, np.nan
+            newer = noise[_NEWER]
+            if newer < 1.0:
+                c = _newer_count(wf, _DX, _DY, _DT, n, a, b, delta, thr_us, thr_rel)
+                if c > newer * (c + best_n - 1):
+                    return False, np.nan, np.nan
         return True, a, b
     return False, np.nan, np.nan
 
@@ -691,8 +692,10 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         # prev_lt is NaN when the previous event had no estimate: the comparison is False
         cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
         # noise rule (module _noise_kernels): a burst lasts at most span lifetimes from its first event
-        span = noise[_BURST_SPAN]
-        cont = cont and (span <= 0.0 or tk - sae[si] <= span * prev_lt[si])
+        span = 0.0
+        if noise is not None:
+            span = noise[_BURST_SPAN]
+            cont = cont and (span <= 0.0 or tk - sae[si] <= span * prev_lt[si])
         # start-up rule: the previous event of the burst has no estimate yet; try the continuation first
         trial = startup and burst > 0.0 and not cont and prev_pol[si] == pk and math.isnan(prev_lt[si])
         t_ev = tk
@@ -722,11 +725,12 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             if ok and t_ev - prev_t[si] <= burst * lt_fit and (span <= 0.0 or t_ev - tk <= span * lt_fit):
                 cont = True  # the continuation fits and its own lifetime covers the gap: keep it
                 break
-        agree = noise[_AGREE]
-        if ok and agree > 0.0:
+        if noise is not None:
             # noise rule (module _noise_kernels): the lifetime agrees with the inlier pixels' own estimates
-            ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
-                                  math.sqrt(a * a + b * b), agree)
+            agree = noise[_AGREE]
+            if ok and agree > 0.0:
+                ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
+                                      math.sqrt(a * a + b * b), agree)
         # border rule: the fit still feeds the burst state below, but is not reported
         # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border

@@ -3,7 +3,9 @@
 The rules take the parameters packed in one float64 array, ``noise``
 (:func:`evedge.detector.intra.noise_args`), so a new rule adds a slot here
 instead of an argument to every kernel (the stream kernel, its strips in
-:mod:`evedge.detector._tiles`, the window kernel). Slots:
+:mod:`evedge.detector._tiles`, the window kernel). With every rule off the
+array is None: numba then compiles none of the rules' code (as
+``off_as_none`` does for the other options). Slots:
 
 ``_NEWER`` (``IntraParams.newer_share_max``; 1 = off)
     Largest share of the window points newer than the fitted plane (beyond

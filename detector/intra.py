@@ -524,18 +524,24 @@ def noise_params(**overrides) -> IntraParams:
     return IntraParams(**{**ROBUST, **NOISE_RULES, **overrides})
 
 
-def noise_args(params: IntraParams) -> np.ndarray:
+def noise_args(params: IntraParams) -> np.ndarray | None:
     """The noise rules' parameters as the kernels take them (one float64 array, :mod:`._noise_kernels`).
+
+    None when every rule is off (the kernels then compile none of them).
 
     Examples
     --------
     >>> noise_args(IntraParams(newer_share_max=0.25))
     array([0.25, 0.  , 0.  ])
+    >>> noise_args(IntraParams()) is None
+    True
     """
     out = np.zeros(N_NOISE)
     out[_NEWER] = params.newer_share_max
     out[_BURST_SPAN] = params.burst_span_lifetimes
     out[_AGREE] = params.lifetime_agreement
+    if params.newer_share_max == 1.0 and params.burst_span_lifetimes == 0.0 and params.lifetime_agreement == 0.0:
+        return None
     return out
 
 
