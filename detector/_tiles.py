@@ -115,9 +115,9 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 @njit(parallel=True, cache=True)
 def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo,
-                    own_hi, dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
-                    min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border,
-                    jump_check, stale_frac, t_start, reach_px, out_lt, out_vx, out_vy, out_valid):
+                    own_hi, dec, dec_lt, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials,
+                    stop_prob, min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border,
+                    jump_check, stale_frac, t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid):
     """``n_threads`` workers share the strips: each takes any free strip, runs it until it needs a
     decision not yet taken (or to its end), gives it back, and moves on.
 
@@ -150,10 +150,10 @@ def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, pr
                     b = starts[s + 1]
                     j = _intra_stream(x, y, t, p, seg, j0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
                                       prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
-                                      dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
+                                      dec, dec_lt, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
                                       min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
-                                      startup, border, jump_check, stale_frac, t_start, reach_px, out_lt[a:b],
-                                      out_vx[a:b], out_vy[a:b], out_valid[a:b], wf, wi)
+                                      startup, border, jump_check, stale_frac, t_start, reach_px, noise,
+                                      out_lt[a:b], out_vx[a:b], out_vy[a:b], out_valid[a:b], wf, wi)
                     _store_release(cursor, s, j)
                     _store_release(busy, s, 0)
                     progressed = progressed or j > j0
@@ -170,10 +170,10 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
-    ``burst`` to ``reach_px`` without the geometry (``burst, per_pol, half, delta,
+    ``burst`` to ``noise`` without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
     fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac, t_start,
-    reach_px``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
+    reach_px, noise``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
     shared by ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`).
     """
     half = kernel_args[2]
@@ -194,7 +194,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     # outputs per slot (each strip writes its own memory), then put in place
     slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     _intra_parallel(min(n_tiles, numba.get_num_threads()), x, y, t, p, g0, idx, starts, off, *local, lo, rows,
-                    own_lo, own_hi, np.zeros(x.shape[0], np.int8), kernel_args[0], width, height, *kernel_args[1:],
+                    own_lo, own_hi, np.zeros(x.shape[0], np.int8), np.empty(x.shape[0]), kernel_args[0], width, height, *kernel_args[1:],
                     *slot_outs)
     ys = y[idx]
     tile_of = np.repeat(np.arange(n_tiles), np.diff(starts))

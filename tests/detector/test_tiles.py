@@ -64,7 +64,9 @@ def test_estimator_strips_on_the_real_recording(stripes_events):
                                     IntraParams(split_gap_ratio=1.5, event_on_plane=1.0),
                                     IntraParams(burst_startup=True, border_px=2),
                                     IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
-                                                startup_reach=1.0)])
+                                                startup_reach=1.0),
+                                    IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25,
+                                                burst_span_lifetimes=1.5, lifetime_agreement=2.0)])
 def test_estimator_strips_other_parameters(shapes, params):
     events, size = shapes
     sub = events[:40_000]
@@ -124,3 +126,18 @@ def test_estimator_strips_on_a_single_worker(shapes):
     finally:
         numba.set_num_threads(before)
     assert tiled.tobytes() == serial.tobytes()
+
+
+def test_estimator_strips_carry_the_lifetimes_the_noise_rule_reads():
+    """lifetime_agreement reads the inlier pixels' latest estimates, up to the window radius into a strip's halo:
+    the owner publishes them with its burst decision. Narrow strips (3 rows, halo 2) and a strict ratio make most
+    of those reads halo reads."""
+    from evedge.bench.robustness import build
+    from evedge.sim import parse_scene, simulate
+
+    rec = simulate(parse_scene(build("stripes", 40, 30, 3, angle_deg=20, speed=300, r=3.0, noise_hz=5.0), "t"),
+                   progress=False)
+    params = IntraParams(lifetime_agreement=1.3)
+    serial = estimate_lifetimes(rec.events, rec.sensor_size, params)
+    assert 0 < serial["valid"].sum() < estimate_lifetimes(rec.events, rec.sensor_size)["valid"].sum()
+    assert estimate_lifetimes(rec.events, rec.sensor_size, params, n_tiles=10).tobytes() == serial.tobytes()
