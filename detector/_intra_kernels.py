@@ -31,6 +31,7 @@ from numba import njit
 from evedge._splitmix import _splitmix64
 
 from ._atomic import _store_release
+from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _lifetime_agrees, _newer_count
 
 _NEVER = np.iinfo(np.int64).min
 
@@ -216,7 +217,7 @@ def _jump_ok(g1, g2, forced, gap_ratio, jump_check):
 
 @njit(cache=True)
 def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
-                min_inliers, intercept, fallback, gap_ratio, on_plane, jump_check):
+                min_inliers, intercept, fallback, gap_ratio, on_plane, jump_check, noise):
     """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
 
     The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
@@ -486,6 +487,13 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             return False, np.nan, np.nan
         if not on:
             return False, np.nan, np.nan
+        if noise is not None:
+            # noise rule (module _noise_kernels): the plane must not leave many recent points above it
+            newer = noise[_NEWER]
+            if newer < 1.0:
+                c = _newer_count(wf, _DX, _DY, _DT, n, a, b, delta, thr_us, thr_rel)
+                if c > newer * (c + best_n - 1):
+                    return False, np.nan, np.nan
         return True, a, b
     return False, np.nan, np.nan
 
@@ -595,7 +603,7 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
-                  t_start, reach_px, out_lt, out_vx, out_vy, out_valid, wf, wi):
+                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -616,7 +624,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     ``half`` rows of the owned rows' edges (a neighbour's halo reads it) publishes,
     for event ``k``, its pixel's ``prev_lt`` after it in ``dec_lt[k]``, then its burst
     decision in ``dec[k]`` (int8, atomic release: ``1`` new burst, ``2`` continues
-    its pixel's burst). ``dec`` is empty without strips.
+    its pixel's burst). ``dec`` is empty without strips. The noise rule
+    ``lifetime_agreement`` reads the inlier pixels' ``prev_lt``, the halo's
+    included: the halo replay then takes the owner's published value.
 
     Burst grouping (``burst > 0``): ``prev_lt`` (float, NaN = none) and ``prev_pol``
     (int8, -1 = none), laid out as ``sae`` and updated in place, hold the lifetime
@@ -658,6 +668,11 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         pk = np.int8(1) if p[k] else np.int8(0)
         # prev_lt is NaN when the previous event had no estimate: the comparison is False
         cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
+        # noise rule (module _noise_kernels): a burst lasts at most span lifetimes from its first event
+        span = 0.0
+        if noise is not None:
+            span = noise[_BURST_SPAN]
+            cont = cont and (span <= 0.0 or tk - sae[si] <= span * prev_lt[si])
         # start-up rule: the previous event of the burst has no estimate yet; try the continuation first
         trial = startup and burst > 0.0 and not cont and prev_pol[si] == pk and math.isnan(prev_lt[si])
         t_ev = tk
@@ -679,13 +694,20 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 big = max(big, abs(wi[_IT, i]))
             ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
                                    thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
-                                   fallback, gap_ratio, on_plane, jump_check)
+                                   fallback, gap_ratio, on_plane, jump_check, noise)
             if not trial:
                 break
             trial = False
-            if ok and t_ev - prev_t[si] <= burst * math.sqrt(a * a + b * b):
+            lt_fit = math.sqrt(a * a + b * b)
+            if ok and t_ev - prev_t[si] <= burst * lt_fit and (span <= 0.0 or t_ev - tk <= span * lt_fit):
                 cont = True  # the continuation fits and its own lifetime covers the gap: keep it
                 break
+        if noise is not None:
+            # noise rule (module _noise_kernels): the lifetime agrees with the inlier pixels' own estimates
+            agree = noise[_AGREE]
+            if ok and agree > 0.0:
+                ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
+                                      math.sqrt(a * a + b * b), agree)
         # border rule: the fit still feeds the burst state below, but is not reported
         # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border
@@ -720,7 +742,8 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
-                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane, jump_check):
+                 min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane, jump_check,
+                 noise):
     """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -751,7 +774,7 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
         # float times: 2-means sums them in float64 (exact=False)
         ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
                                max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
-                               gap_ratio, on_plane, jump_check)
+                               gap_ratio, on_plane, jump_check, noise)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

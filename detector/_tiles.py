@@ -54,6 +54,7 @@ from numba import njit, prange
 from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
 from ._buffer_kernels import _buffer_scan, new_state
 from ._intra_kernels import _intra_stream, _scratch
+from ._noise_kernels import _AGREE, _BURST_SPAN
 
 
 def check_n_tiles(n_tiles, height: int) -> int:
@@ -161,25 +162,47 @@ def _queued_near(qrow, qcnt, prow, r, xk, rows, width, half):
     return False
 
 
+@njit(cache=True)
+def _noise_halo(noise):
+    """``(lifetime_agreement, burst_span_lifetimes)`` from the noise rules' array (None: both off)."""
+    if noise is None:
+        return 0.0, 0.0
+    return noise[_AGREE], noise[_BURST_SPAN]
+
+
 @njit(cache=True, inline="always")
-def _halo_event(k, si, tk, pk, sae, prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, apply):
+def _halo_event(k, si, tk, pk, sae, prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, agree, span, apply):
     """Replay halo event ``k`` at local pixel ``si`` (SAE and burst state, no fit); False when it cannot be yet.
 
     When the owner has published the event, its decision and kept lifetime are
     taken as they are. Otherwise the decision follows from the pixel's state
-    with the burst rule of :func:`_intra_stream` (same expressions), once the
-    lifetime its owner kept for the pixel's previous event is known: ``prev_lt``
-    of a halo pixel holds ``-(k' + 1)`` after a replayed event ``k'`` (lifetimes
-    are positive or NaN) until ``dec_lt[k']`` is published. The start-up rule's
+    with the burst rules of :func:`_intra_stream` (same expressions: the gap
+    rule, then the noise rule ``burst_span_lifetimes``), once the lifetime its
+    owner kept for the pixel's previous event is known: ``prev_lt`` of a halo
+    pixel holds ``-(k' + 1)`` after a replayed event ``k'`` (lifetimes are
+    positive or NaN) until ``dec_lt[k']`` is published. The start-up rule's
     trial (the previous event without estimate) needs the owner's decision of
-    the event itself. So a halo event mostly waits for an event one same-pixel
-    gap older, not for its own copy. With ``apply`` False, only whether it can.
-    A rule added to the burst decision in :func:`_intra_stream` must be added
-    here too (``tests/detector/test_tiles.py`` fails otherwise); a rule that
-    makes owned events read their neighbours' ``prev_lt`` must wait for the
-    owner's value instead (return False while ``dec[k]`` is 0).
+    the event itself, and so does every event under the noise rule
+    ``lifetime_agreement`` (owned events read their neighbours' ``prev_lt``: a
+    halo pixel's must hold the value itself, never the pending marker). So a
+    halo event mostly waits for an event one same-pixel gap older, not for its
+    own copy. ``agree`` and ``span`` are ``lifetime_agreement`` and
+    ``burst_span_lifetimes`` (0 = off, :func:`_noise_halo`). With ``apply``
+    False, only whether it can.
+
+    The other rules of :func:`_intra_stream` (``stale_fraction``,
+    ``split_jump_check``, ``startup_reach``, ``newer_share_max``, the border)
+    change only the fit, hence the kept lifetime, which the owner publishes;
+    they read the event's own (owned) pixel and the window's SAE, which the
+    halo replay keeps exact. A rule added to the burst decision in
+    :func:`_intra_stream` must be added here too (``tests/detector/test_tiles.py``
+    fails otherwise); a rule that makes owned events read their neighbours'
+    ``prev_lt`` must wait for the owner's value instead (return False while
+    ``dec[k]`` is 0).
     """
     d = _load_acquire(dec, k)
+    if d == 0 and agree > 0.0:
+        return False  # owned events read this pixel's prev_lt: the owner's value, not the pending marker
     if d != 0:
         cont = d == 2
         lt_after = dec_lt[k]
@@ -194,6 +217,8 @@ def _halo_event(k, si, tk, pk, sae, prev_t, prev_lt, prev_pol, dec, dec_lt, burs
                 return False
             lt = dec_lt[kp]
         cont = prev_pol[si] == pk and tk - prev_t[si] <= burst * lt
+        # noise rule burst_span_lifetimes: a burst lasts at most span lifetimes from its first event
+        cont = cont and (span <= 0.0 or tk - sae[si] <= span * lt)
         if startup and not cont and prev_pol[si] == pk and math.isnan(lt):
             return False  # the trial's fit decides: the owner's
         lt_after = -np.float64(k + 1)
@@ -250,6 +275,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     per_pol = kargs[1]
     half = kargs[2]
     startup = kargs[15]
+    agree, span = _noise_halo(kargs[21])  # the noise rules the halo replay applies
     n = seg.shape[0]
     mask = queue.shape[0] - 1  # a power of two
     nb = bpos.shape[0]
@@ -268,8 +294,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             k = seg[queue[head & mask]]
             pr = ((1 if p[k] else 0) if per_pol else 0) * rows + y[k] - row0
             if own_lo <= y[k] < own_hi or _halo_event(k, pr * width + x[k], t[k], np.int8(1 if p[k] else 0), sae,
-                                                      prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup,
-                                                      False):
+                                                      prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, agree,
+                                                      span, False):
                 jp = queue[head & mask]
                 head += 1
                 qrow[pr] -= 1
@@ -283,7 +309,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             later = head < tail and _queued_near(qrow, qcnt, pl, r, x[k], rows, width, half)
             if not later and not own_lo <= y[k] < own_hi:
                 later = not _halo_event(k, (pl + r) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t,
-                                        prev_lt, prev_pol, dec, dec_lt, burst, startup, False)
+                                        prev_lt, prev_pol, dec, dec_lt, burst, startup, agree, span, False)
             if not later:
                 jp = cur
             elif tail - head > mask:
@@ -321,7 +347,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
                 m = near_lo = near_hi = 0
             pl = ((1 if p[k] else 0) if per_pol else 0) * rows
             _halo_event(k, (pl + y[k] - row0) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t, prev_lt,
-                        prev_pol, dec, dec_lt, burst, startup, True)
+                        prev_pol, dec, dec_lt, burst, startup, agree, span, True)
         done += 1
     _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt, width,
            height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
@@ -449,9 +475,11 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
-    ``burst`` to the end of the parameters, without the geometry (``burst, per_pol, half, delta,
+    ``burst`` to ``noise``, without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
-    fallback, seed, gap_ratio, on_plane, startup, border``, ...); ``outs`` is ``(lt, vx, vy, valid)``. The
+    fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
+    t_start, reach_px, noise``: :func:`_run_strip` reads ``burst, per_pol, half``,
+    ``startup`` and ``noise`` by position); ``outs`` is ``(lt, vx, vy, valid)``. The
     strips are cut where they hold about as many events (:func:`balanced_strips`) and shared by
     ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64 ``(n_tiles, 4)``)
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.

@@ -1,6 +1,7 @@
 """Intra-pixel-area RANSAC: kernels against slow references, analytic edges, streaming, errors."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -163,7 +164,17 @@ def ref_ransac(points, kept, p, seed, g, delta):
         return "flat"
     if p.event_on_plane and p.refit_intercept and not ref_event_on_plane(pts[1:], a, b, p, delta):
         return "off plane"
+    if p.newer_share_max < 1.0:
+        newer = ref_newer_count(points, a, b, p, delta)
+        if newer > p.newer_share_max * (newer + cnt - 1):
+            return "recent points above the plane"
     return True, float(a), float(b), flags
+
+
+def ref_newer_count(points, a, b, p, delta):
+    """Window points newer than the plane through the current event, beyond its inlier band (newer_share_max)."""
+    thr = p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    return sum(1 for x, y, t in points if t - (a * x + b * y) - delta * (abs(a) + abs(b)) > thr)
 
 
 def ref_event_on_plane(past, a_all, b_all, p, delta):
@@ -193,18 +204,23 @@ def ref_stream(events, size, p: IntraParams):
         plane = pol if p.per_polarity else 0
         key = (plane, x, y)
         pt, plt, ppol = prev.get(key, (0, math.nan, None))
-        cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt
+        span = p.burst_span_lifetimes
+        cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt and (not span or t_ev - sae[key] <= span * plt)
         trial = p.burst_startup and burst > 0 and not cont and ppol == pol and math.isnan(plt)
+        inliers = []  # pixels of the last fit's inliers
 
         def fit(t, oldest=None):
-            pts = []
+            pts, cells = [], []
             for oy in range(-half, half + 1):
                 for ox in range(-half, half + 1):
                     q = (plane, x + ox, y + oy)
                     if (ox or oy) and 0 <= x + ox < size.width and 0 <= y + oy < size.height and q in sae:
                         if oldest is None or sae[q] >= oldest:
                             pts.append((float(ox), float(oy), float(sae[q] - t)))
-            return ref_fit(pts, p, p.seed, g, p.delta_px)[:3]
+                            cells.append(q)
+            ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px)
+            inliers[:] = [q for q, f in zip(cells, flags) if f]
+            return ok, a, b
 
         def stale_cutoff():
             """stale_fraction: times older than this fraction of the interval since the pixel's
@@ -220,7 +236,8 @@ def ref_stream(events, size, p: IntraParams):
         if cont or trial:
             ok, a, b = fit(sae[key])  # fitted at the burst's first time
             if trial:
-                if ok and t_ev - pt <= burst * math.hypot(a, b):
+                lt_fit = math.hypot(a, b)
+                if ok and t_ev - pt <= burst * lt_fit and (not span or t_ev - sae[key] <= span * lt_fit):
                     cont = True
                 else:
                     sae[key] = t_ev
@@ -228,6 +245,12 @@ def ref_stream(events, size, p: IntraParams):
         else:
             sae[key] = t_ev
             ok, a, b = fit(t_ev, stale_cutoff())
+        if ok and p.lifetime_agreement:
+            known = [prev[q][1] for q in inliers if q in prev and not math.isnan(prev[q][1])]
+            if len(known) >= 3:
+                med = float(np.median(known))
+                lt_fit, k = math.hypot(a, b), p.lifetime_agreement
+                ok = lt_fit <= k * med and lt_fit * k >= med
         lt = math.sqrt(a * a + b * b) if ok else math.nan
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
@@ -281,7 +304,8 @@ def random_windows(n, side, rng):
      IntraParams(refit_intercept=False, inlier_threshold_rel=0.0, inlier_threshold_us=200.0),
      IntraParams(event_on_plane=1.0),
      IntraParams(split_gap_ratio=3.0, event_on_plane=1.0),
-     IntraParams(split_gap_ratio=3.0, split_jump_check=True)],
+     IntraParams(split_gap_ratio=3.0, split_jump_check=True),
+     IntraParams(newer_share_max=0.2), IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
@@ -660,6 +684,48 @@ def test_burst_startup_streaming_equals_one_shot():
     est = IntraPixelLifetime(SensorSize(24, 24), p)
     parts = [est.process(ev[i:i + 97]) for i in range(0, ev.size, 97)]
     assert np.concatenate(parts).tobytes() == want.tobytes()
+
+
+def _edge_with_recent_noise(n_recent):
+    """Axis-aligned edge (1000 us/px) behind the event, stale pixels ahead, ``n_recent`` pixels of column -2
+    fired again 100 us ago (background activity after the edge passed them)."""
+    w = np.full((5, 5), -50_000.0)  # columns +1, +2: an older passage
+    w[:, 2] = 0.0
+    w[:, 1] = -1000.0
+    w[:, 0] = -2000.0
+    w[:n_recent, 0] = -100.0
+    return w
+
+
+def test_newer_share_max_known_answer():
+    """Three recent points above the plane, 11 past inliers: share 3 / 14 = 0.214."""
+    w = _edge_with_recent_noise(3)
+    paper = fit_window(w, IntraParams())
+    assert paper.ok and paper.a_us_per_px == pytest.approx(1000.0) and abs(paper.b_us_per_px) < 1e-9
+    assert paper.inliers.sum() == 12  # the event, 4 of its column, 5 of column -1, 2 of column -2
+    assert not fit_window(w, IntraParams(newer_share_max=0.2)).ok  # 3 > 0.2 * 14
+    kept = fit_window(w, IntraParams(newer_share_max=0.25))  # 3 <= 0.25 * 14: the paper's fit, unchanged
+    assert kept.ok and kept.a_us_per_px == paper.a_us_per_px and kept.b_us_per_px == paper.b_us_per_px
+    clean = _edge_with_recent_noise(0)  # nothing above the plane: kept at any share
+    assert fit_window(clean, IntraParams(newer_share_max=0.01)).ok
+
+
+def test_noise_rules_stream_match_reference():
+    rng = np.random.default_rng(4)
+    size = SensorSize(12, 10)
+    n = 1500
+    t = np.sort(rng.integers(0, 300_000, n))
+    x = (t // 2_000 + rng.integers(0, 2, n)) % size.width  # an edge sweeping x, plus background events
+    x = np.where(rng.random(n) < 0.3, rng.integers(0, size.width, n), x)
+    ev = make_events(x, rng.integers(0, size.height, n), t, rng.random(n) < 0.5)
+    base = IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, min_points=4, min_inliers=4)
+    plain = estimate_lifetimes(ev, size, base)["valid"].sum()
+    for rule in (dict(newer_share_max=0.25), dict(burst_span_lifetimes=1.0), dict(lifetime_agreement=1.5),
+                 dict(newer_share_max=0.25, burst_span_lifetimes=1.5, lifetime_agreement=2.0)):
+        p = replace(base, **rule)
+        got = estimate_lifetimes(ev, size, p)
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+        assert 0 < got["valid"].sum() < plain, rule  # each rule rejects some of these events
 
 
 def test_linkage_split_keeps_a_jittered_ramp_whole():

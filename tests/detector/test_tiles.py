@@ -8,7 +8,7 @@ import pytest
 from evedge.detector import detect, filter_events
 from evedge.detector._tiles import check_n_tiles, strips
 from evedge.detector.buffer import BufferParams
-from evedge.detector.intra import IntraParams, IntraPixelLifetime, estimate_lifetimes
+from evedge.detector.intra import IntraParams, IntraPixelLifetime, estimate_lifetimes, noise_params
 from evedge.events import EVENT_DTYPE, SensorSize
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -64,7 +64,9 @@ def test_estimator_strips_on_the_real_recording(stripes_events):
                                     IntraParams(split_gap_ratio=1.5, event_on_plane=1.0),
                                     IntraParams(burst_startup=True, border_px=2),
                                     IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
-                                                startup_reach=1.0)])
+                                                startup_reach=1.0),
+                                    IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25,
+                                                burst_span_lifetimes=1.5, lifetime_agreement=2.0)])
 def test_estimator_strips_other_parameters(shapes, params):
     events, size = shapes
     sub = events[:40_000]
@@ -146,7 +148,10 @@ def one_worker_small_turns(monkeypatch):
                                     IntraParams(split_gap_ratio=1.5, event_on_plane=1.0, border_px=2),
                                     IntraParams(window_size=7, per_polarity=False, burst_lifetimes=2.0),
                                     IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
-                                                startup_reach=1.0)])
+                                                startup_reach=1.0),
+                                    IntraParams(stale_fraction=0.5), IntraParams(startup_reach=2.0),
+                                    IntraParams(burst_span_lifetimes=1.5), IntraParams(lifetime_agreement=1.3),
+                                    IntraParams(newer_share_max=0.25), noise_params(burst_span_lifetimes=1.5)])
 def test_estimator_strips_with_constant_deferrals(shapes, one_worker_small_turns, params):
     """Out-of-order runs, full queues and halo replays waiting for a neighbour: still the serial bytes."""
     events, size = shapes
@@ -173,14 +178,16 @@ def test_estimator_strips_with_constant_deferrals(shapes, one_worker_small_turns
     assert deferred > 1000 and waited > 5  # the paths under test did run (events deferred; turns with none ready)
 
 
-def test_estimator_strips_streamed_every_tile_count(sim_stripes):
-    """Chunked through the streaming estimator with 2/3/5/16 strips (the halo state crosses chunks) == one shot."""
+@pytest.mark.parametrize("params", [IntraParams(), noise_params(burst_span_lifetimes=1.5)])
+def test_estimator_strips_streamed_every_tile_count(sim_stripes, params):
+    """Chunked through the streaming estimator with 2/3/5/16 strips (the halo state crosses chunks) == one shot;
+    also with every rule of robust_params() and the noise rules on (startup_reach keeps the stream's start)."""
     events, size = sim_stripes
     sub = events[filter_events(events, size)][:40_000]
-    serial = estimate_lifetimes(sub, size)
+    serial = estimate_lifetimes(sub, size, params)
     cuts = [0, 5, 9_000, 9_001, 25_000, 40_000]
     for n in TILES:
-        est = IntraPixelLifetime(size, n_tiles=n)
+        est = IntraPixelLifetime(size, params, n_tiles=n)
         out = np.concatenate([est.process(sub[a:b]) for a, b in zip(cuts[:-1], cuts[1:])])
         assert out.tobytes() == serial.tobytes(), n
 
@@ -196,3 +203,17 @@ def test_balanced_strips_follow_the_events():
     assert np.array_equal(even[:, 1], [30, 60, 90])
     assert np.array_equal(balanced_strips(np.zeros(0, np.int64), 7, 7)[:, 0], np.arange(7))
 
+
+def test_estimator_strips_carry_the_lifetimes_the_noise_rule_reads():
+    """lifetime_agreement reads the inlier pixels' latest estimates, up to the window radius into a strip's halo:
+    the owner publishes them with its burst decision. Narrow strips (3 rows, halo 2) and a strict ratio make most
+    of those reads halo reads."""
+    from evedge.bench.robustness import build
+    from evedge.sim import parse_scene, simulate
+
+    rec = simulate(parse_scene(build("stripes", 40, 30, 3, angle_deg=20, speed=300, r=3.0, noise_hz=5.0), "t"),
+                   progress=False)
+    params = IntraParams(lifetime_agreement=1.3)
+    serial = estimate_lifetimes(rec.events, rec.sensor_size, params)
+    assert 0 < serial["valid"].sum() < estimate_lifetimes(rec.events, rec.sensor_size)["valid"].sum()
+    assert estimate_lifetimes(rec.events, rec.sensor_size, params, n_tiles=10).tobytes() == serial.tobytes()
