@@ -24,8 +24,9 @@ BENCH_MARKER = ".evedge-bench"
 
 
 def _is_bench_output(folder: Path) -> bool:
-    return (folder / BENCH_MARKER).is_file() or ((folder / "report.html").is_file()
-                                                 and (folder / "results.json").is_file())
+    """A bench, demo or grade output (``grade.json`` for grades written before the marker)."""
+    return (folder / BENCH_MARKER).is_file() or ((folder / "report.html").is_file() and (
+        (folder / "results.json").is_file() or (folder / "grade.json").is_file()))
 
 
 def _out_dir(ctx, param, value):
@@ -311,6 +312,7 @@ def demo(out: Path, no_progress: bool, seed: int) -> None:
                    "vy_px_s, kept (one value per dataset event, in its order) and/or edge_t_us + edge_images, "
                    "or a .csv with those per-event columns.")
 @_OUT
+@_OVERWRITE
 @click.option("--method", "method", default=None,
               help="Name of the method in the results (default: the detection file's method, else its file name).")
 @click.option("--canny-settings", type=click.IntRange(1, 3), default=1, show_default=True,
@@ -322,16 +324,24 @@ def grade(dataset: Path, detections: Path, out: Path, method: str | None, canny_
     section, normal-flow angle and magnitude error, noise-filter precision and
     recall against the noise labels, CDM against the exact edges and Canny at
     the frame times. Writes OUT/grade.csv, OUT/grade.h5 (the long table),
-    OUT/grade.json, OUT/grade.png and OUT/report.html.
+    OUT/grade.json, OUT/grade.png and OUT/report.html, built in a temporary
+    folder and swapped in as a whole; an existing OUT is replaced only with
+    --overwrite (and only an earlier grade or bench output).
     """
     from .grade import GradeError
     from .grade import grade as run_grade
 
     cmd = f"evedge grade {dataset} -d {detections} -o {out}"
     try:
-        res = run_grade(dataset, detections, out, method=method, canny_settings=canny_settings, command=cmd)
+        with _staged(out) as stage:
+            res = run_grade(dataset, detections, stage, method=method, canny_settings=canny_settings, command=cmd)
     except GradeError as err:
         raise click.ClickException(str(err)) from None
+    except OSError as err:
+        raise click.ClickException(f"cannot write the output: {err}") from None
+    res["files"] = [str(out / Path(f).name) for f in res["files"]]  # they were written in the staged folder
+    res["report"] = str(out / Path(res["report"]).name)
+    res["figure"] = str(out / Path(res["figure"]).name) if res.get("figure") else None
     table = res["table"]
     for r in table.query(section="all"):
         if r["metric"] in ("median_rel_error", "p90_rel_error", "share_estimated", "median_angle_error_deg",

@@ -115,23 +115,24 @@ class ResultsTable:
         """Write ``STEM.csv`` and ``STEM.h5`` (columnar), each through a temporary file; their paths."""
         import h5py
 
-        from evedge.io._atomic import atomic_path
+        from evedge.io._atomic import write_hdf5_atomic
 
         stem = Path(stem)
         csv_path = write_text_atomic(stem.with_suffix(".csv"), self.to_csv_text())
-        h5_path = stem.with_suffix(".h5")
-        with atomic_path(h5_path) as tmp:
-            with h5py.File(tmp, "w", track_order=True) as f:
-                f.attrs["format"] = "evedge-results"
-                f.attrs["format_version"] = np.int64(1)
-                g = f.create_group("results", track_order=True)
-                text = h5py.string_dtype("utf-8")
-                for c in _TEXT:
-                    g.create_dataset(c, data=np.array([r[c] for r in self.rows], dtype=object), dtype=text,
-                                     track_times=False)
-                g.create_dataset("value", data=np.array([r["value"] for r in self.rows], dtype=np.float64),
+
+        def fill(f):
+            f.attrs["format"] = "evedge-results"
+            f.attrs["format_version"] = np.int64(1)
+            g = f.create_group("results", track_order=True)
+            text = h5py.string_dtype("utf-8")
+            for c in _TEXT:
+                g.create_dataset(c, data=np.array([r[c] for r in self.rows], dtype=object), dtype=text,
                                  track_times=False)
-        return csv_path, h5_path
+            g.create_dataset("value", data=np.array([r["value"] for r in self.rows], dtype=np.float64),
+                             track_times=False)
+
+        # built in memory, then written with plain writes: HDF5 can crash the process on a full disk
+        return csv_path, write_hdf5_atomic(stem.with_suffix(".h5"), fill)
 
 
 def read_results(path: str | os.PathLike) -> ResultsTable:

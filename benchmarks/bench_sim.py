@@ -9,17 +9,26 @@ Run: ``.venv/bin/python benchmarks/bench_sim.py [--quick] [--no-3d] [--frames-on
 ``boxes_3d`` (pyrender). Frames are off (pure event generation); each scene is
 run once briefly first so numba compilation and GL start-up are not counted.
 One process, numba on one thread. Section rows count samples, not events.
-Rows say the sampling (default: verified steps with ``lambda = 0.5``; ``geometric``: steps
-bounded by ``max_step_px`` only, for exact crossing times) and the crossing times (default exact;
-``linear``: ESIM's interpolation). Frames rows: ``shapes_translation`` rendered (not timed) at 1 kHz and 5 kHz
+Rows say the sampling (default on the analytic scenes: geometric steps, bounded by
+``max_step_px`` only, exact crossing times; on the shapes the pixels the renderer cannot prove
+monotone over a step are sub-sampled; ``verified``: steps verified by the lambda rule, the
+previous default of the shapes) and the crossing times (default exact; ``linear``: ESIM's
+interpolation). The default rows of ``stripes`` and ``shapes_translation`` at 240x180 are the
+best of 3 runs and also print their ratio to the target of issue 15 (3x real time on one core):
+``= 1.25x the 3 target`` (>= 1: met). Frames rows: ``shapes_translation`` rendered (not timed) at 1 kHz and 5 kHz
 into memory, then converted by :func:`evedge.sim.simulate_frames` (ESIM's
-algorithm, the scenes' pixel model): the frames path's speed without decoding.
+algorithm, the scenes' pixel model): the frames path's speed without decoding, as the
+best of 3 runs and as a ratio to the 2.5 sim-s/s target; the same frames converted
+frame by frame (the converter without its batches of frames), 1 kHz frames upsampled
+x5 (log interpolation: 5 kHz samples), and end to end from a lossless 8-bit video
+(FFV1, written to a temporary folder, not timed) with the share of opening and decoding.
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import math
 import os
 import sys
 import time
@@ -41,33 +50,110 @@ def _scene(name: str, sensor: str | None = None, **events):
     return parse_scene(data, source=f"{name}.toml")
 
 
-def _run(label: str, scene, duration_s: float) -> None:
+#: Issue 15's target for the analytic scenes at 240x180: simulated seconds per CPU second.
+TARGET_SIM_S_PER_S = 3.0
+
+
+def _run(label: str, scene, duration_s: float, target: bool = False) -> None:
     simulate(scene, duration_s=min(0.01, duration_s), frame_rate_hz=0, progress=False)  # warm-up
-    t0 = time.process_time()
-    rec = simulate(scene, duration_s=duration_s, frame_rate_hz=0, progress=False)
-    cpu = time.process_time() - t0
+    cpu = math.inf
+    for _ in range(3 if target else 1):  # target rows: the best of 3 (the machine is shared)
+        t0 = time.process_time()
+        rec = simulate(scene, duration_s=duration_s, frame_rate_hz=0, progress=False)
+        cpu = min(cpu, time.process_time() - t0)
     n = rec.events.shape[0]
+    speed = duration_s / cpu
+    goal = (f"  = {speed / TARGET_SIM_S_PER_S:4.2f}x the {TARGET_SIM_S_PER_S:g} target (best of 3)"
+            if target else "")
     print(f"{label:44s} {scene.sensor.width}x{scene.sensor.height}  sim {duration_s:5.2f} s in "
-          f"{cpu:6.2f} s CPU: {duration_s / cpu:6.3f} sim-s/s, {n / cpu / 1e6:6.3f} Mev/s "
-          f"({n:,} events, {rec.metadata['n_samples']} samples)", flush=True)
+          f"{cpu:6.2f} s CPU: {speed:6.3f} sim-s/s, {n / cpu / 1e6:6.3f} Mev/s "
+          f"({n:,} events, {rec.metadata['n_samples']} samples, {rec.metadata['sampling_used']}){goal}", flush=True)
 
 
-def _frames(label: str, scene, duration_s: float, rate_hz: float) -> None:
+#: The frames path's speed target (simulated s per CPU s at 240x180; esim_py: 3.3 on the same frames).
+FRAMES_TARGET = 2.5
+
+
+def _best_cpu(fn, repeats: int):
+    """The smallest CPU time of ``repeats`` runs of ``fn()`` (other processes only ever add to it) and its result."""
+    best, out = float("inf"), None
+    for _ in range(repeats):
+        t0 = time.process_time()
+        out = fn()
+        best = min(best, time.process_time() - t0)
+    return best, out
+
+
+def _frames_row(label, scene, duration_s, cpu, rec, what):
+    n = rec.events.shape[0]
+    rate = duration_s / cpu
+    print(f"{label:44s} {scene.sensor.width}x{scene.sensor.height}  sim {duration_s:5.2f} s in "
+          f"{cpu:6.3f} s CPU: {rate:6.3f} sim-s/s = {rate / FRAMES_TARGET:4.2f}x the {FRAMES_TARGET} target, "
+          f"{n / cpu / 1e6:6.3f} Mev/s ({n:,} events, {what})", flush=True)
+
+
+def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, upsample: int = 1,
+            per_frame: bool = False) -> None:
     import numpy as np
 
     from evedge.sim import frames_from_arrays, simulate_frames
+    from evedge.sim.frames import FramesRenderer
 
     r = scene.build_renderer()
     t = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
     frames = np.stack([r.intensity(float(tk)) for tk in t])
-    simulate_frames(frames_from_arrays(frames[:5], t[:5]), scene.params, progress=False)  # warm-up
-    t0 = time.process_time()
-    rec = simulate_frames(frames_from_arrays(frames, t), scene.params, seed=scene.seed, progress=False)
-    cpu = time.process_time() - t0
-    n = rec.events.shape[0]
-    print(f"{label:44s} {scene.sensor.width}x{scene.sensor.height}  sim {duration_s:5.2f} s in "
-          f"{cpu:6.2f} s CPU: {duration_s / cpu:6.3f} sim-s/s, {n / cpu / 1e6:6.3f} Mev/s "
-          f"({n:,} events, {len(t)} frames at {rate_hz:g} Hz)", flush=True)
+    samples = FramesRenderer.samples
+    if per_frame:  # the converter without batches of frames (what it does with sensor effects on)
+        FramesRenderer.samples = None
+    try:
+        def run(fr=frames, tt=t, seed=scene.seed):
+            return simulate_frames(frames_from_arrays(fr, tt), scene.params, seed=seed, upsample=upsample,
+                                   progress=False)
+
+        run(frames[:5], t[:5])  # warm-up
+        cpu, rec = _best_cpu(run, repeats)
+    finally:
+        FramesRenderer.samples = samples
+    what = f"{len(t)} frames at {rate_hz:g} Hz" + (f", upsampled x{upsample} (log)" if upsample > 1 else "")
+    _frames_row(label, scene, duration_s, cpu, rec, what + f", best of {repeats}")
+
+
+def _video(label: str, scene, duration_s: float, rate_hz: float, repeats: int) -> None:
+    """End to end from a lossless 8-bit video file (FFV1 in AVI, OpenCV), with the share of opening and decoding."""
+    import tempfile
+
+    import cv2
+    import numpy as np
+
+    from evedge.sim import open_video, simulate_frames
+
+    r = scene.build_renderer()
+    t = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "frames.avi"
+        # the AVI muxer drops frames above 1000 fps: a faster clip is written at 1000 fps, read at its rate
+        wr = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), min(rate_hz, 1000.0),
+                             (scene.sensor.width, scene.sensor.height), isColor=False)
+        for tk in t:
+            wr.write(np.rint(np.clip(r.intensity(float(tk)), 0, 1) * 255).astype(np.uint8))
+        wr.release()
+
+        rate = None if rate_hz <= 1000.0 else rate_hz
+
+        def decode_only():
+            src = open_video(path, rate_hz=rate)
+            for k in range(len(src)):
+                src.frame(k)
+            src.close()
+
+        simulate_frames(open_video(path, rate_hz=rate), scene.params, progress=False)  # warm-up
+        cpu, rec = _best_cpu(lambda: simulate_frames(open_video(path, rate_hz=rate), scene.params, seed=scene.seed,
+                                                     progress=False), repeats)
+        cpu_open, _ = _best_cpu(lambda: open_video(path, rate_hz=rate).close(), repeats)
+        cpu_decode, _ = _best_cpu(decode_only, repeats)
+    _frames_row(label, scene, duration_s, cpu, rec, f"{len(t)} frames at {rate_hz:g} Hz, best of {repeats}")
+    print(f"{'':44s} of which opening (frame count and times: one pass) {cpu_open:.3f} s, opening + decoding "
+          f"to grey float64 {cpu_decode:.3f} s = {cpu_decode / cpu:.0%} of the total", flush=True)
 
 
 def _sections(label: str, scene) -> None:
@@ -98,20 +184,26 @@ def main() -> None:
     k = 0.25 if args.quick else 1.0
     threads = os.environ["NUMBA_NUM_THREADS"]
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cpus, NUMBA_NUM_THREADS={threads}; "
-          f"times are CPU seconds (time.process_time)")
+          f"times are CPU seconds (time.process_time); load average {os.getloadavg()[0]:.1f}")
     tr = _scene("shapes_translation")
-    _frames("shapes_translation frames in (1 kHz)", tr, 1.0 * k, 1000.0)
-    _frames("shapes_translation frames in (5 kHz)", tr, 0.4 * k, 5000.0)
+    reps = 1 if args.quick else 3
+    _frames("shapes_translation frames in (1 kHz)", tr, 1.0 * k, 1000.0, reps)
+    _frames("shapes_translation frames in (5 kHz)", tr, 0.4 * k, 5000.0, reps)
+    _frames("... 5 kHz, frame by frame (no batches)", tr, 0.4 * k, 5000.0, reps, per_frame=True)
+    _frames("... 1 kHz upsampled x5 (5 kHz samples)", tr, 0.4 * k, 1000.0, reps, upsample=5)
+    _video("shapes_translation video in (1 kHz, FFV1)", tr, 1.0 * k, 1000.0, reps)
+    _video("shapes_translation video in (5 kHz, FFV1)", tr, 0.4 * k, 5000.0, reps)
+    print(f"load average at the end {os.getloadavg()[0]:.1f}")
     if args.frames_only:
         return
-    _run("stripes (analytic, 50 + 125 px/s)", _scene("stripes", "davis240"), 0.8 * k)
-    _run("stripes, geometric sampling", _scene("stripes", "davis240", sampling="geometric"), 0.8 * k)
+    _run("stripes (analytic, 50 + 125 px/s)", _scene("stripes", "davis240"), 0.8 * k, target=True)
+    _run("stripes, verified steps", _scene("stripes", "davis240", sampling="verified"), 0.8 * k)
     _run("stripes, linear times (ESIM)", _scene("stripes", "davis240", crossing_times="linear"), 0.8 * k)
     _run("stripes (analytic, dvs128 as shipped)", _scene("stripes"), 0.8 * k)
-    _run("shapes_translation, geometric sampling", _scene("shapes_translation", sampling="geometric"), 2.0 * k)
-    _run("shapes_translation, lambda = 1", _scene("shapes_translation", **{"lambda": 1.0}), 2.0 * k)
+    _run("shapes_translation (analytic, full 2 s)", tr, 2.0 * k, target=True)
+    _run("shapes_translation, verified steps", _scene("shapes_translation", sampling="verified"), 2.0 * k)
     _run("shapes_translation, linear times (ESIM)", _scene("shapes_translation", crossing_times="linear"), 2.0 * k)
-    _run("shapes_translation (analytic, full 2 s)", tr, 2.0 * k)
+    _run("shapes_rotation (analytic, full 2 s)", _scene("shapes_rotation"), 2.0 * k)
     if not args.quick:
         _sections("shapes_translation", tr)
     if not args.no_3d:

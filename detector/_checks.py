@@ -54,8 +54,11 @@ def validated(events: np.ndarray, sensor_size: SensorSize):
     stays honest: ``events`` is made read-only for the block (and writeable
     again after it, if it was), so nothing can change it between the check and
     the stages that rely on it; a stage that tries gets numpy's "read-only"
-    error. Thread-local: another thread's checks are not affected (blocks of two
-    threads on the same array: the first to close makes it writeable again).
+    error (only through ``events`` and views of it: another writeable view of the
+    same memory made before the block, e.g. its base, is not locked; the
+    pipelines hand their stages ``events`` and slices of it). Thread-local:
+    another thread's checks are not affected (blocks of two threads on the same
+    array: the first to close makes it writeable again).
 
     Examples
     --------

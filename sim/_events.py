@@ -294,3 +294,79 @@ def _scan_frame(i0, i1, eps, e_hi, e_lo, cand):
         cand[m] = i
         m += 1
     return m, bad
+
+
+
+
+@njit(cache=True)
+def _grow(pix, t_true, t_emit, pol, need):
+    """The event buffers of :func:`_frames_batch` with room for at least ``need`` events (contents kept)."""
+    m = max(need, 2 * pix.shape[0])
+    a = np.empty(m, dtype=np.int64)
+    b = np.empty(m)
+    c = np.empty(m)
+    d = np.empty(m, dtype=np.bool_)
+    a[:pix.shape[0]] = pix
+    b[:pix.shape[0]] = t_true
+    c[:pix.shape[0]] = t_emit
+    d[:pix.shape[0]] = pol
+    return a, b, c, d
+
+
+@njit(cache=True)
+def _frames_batch(frames, n_frames, times, i_prev, t_prev, eps, lref, e_hi, e_lo, cpos, cneg, last_t,
+                  refractory_s, seq, jitter_s, jitter_seed, bad, cand, out_pix, out_t_true, out_t, out_p):
+    """Events of a batch of frames in one call: :func:`_scan_frame` and :func:`_crossings` per frame.
+
+    ``frames`` holds ``n_frames`` flat images one after the other (frame
+    ``k`` at ``frames[k * npix:(k + 1) * npix]``, sample time ``times[k]``);
+    the batch follows the sample ``(t_prev, i_prev)``. Per frame the pixels
+    get :func:`_scan_frame`'s test (inlined) and the candidates
+    :func:`_crossings` (count, then fill): the arithmetic of the
+    frame-by-frame path, so the same events, in the same order. Non-finite
+    values of frame ``k`` (among the pixels that changed) are counted in
+    ``bad[k]``; the caller raises on the first such frame. ``cand`` is
+    scratch (``npix`` int64).
+
+    The pre-test stays a plain branch per pixel: measured on this project's
+    frames (3 % of the pixels change per 5 kHz frame), vectorised versions
+    (a chunk's pixels all unchanged? by float or bit comparison) and pixel
+    tiles through the batch were 1.2-3x slower on the development machine.
+
+    The event buffers grow inside as needed. Returns ``(n_events, out_pix,
+    out_t_true, out_t, out_p)``.
+    """
+    npix = i_prev.shape[0]
+    n = 0
+    for f in range(n_frames):
+        base = f * npix
+        i1 = frames[base:base + npix]
+        i0 = i_prev if f == 0 else frames[base - npix:base]
+        m = 0
+        for i in range(npix):  # _scan_frame's test
+            v = i1[i]
+            if v == i0[i]:
+                continue  # unchanged pixel (most of them)
+            if not math.isfinite(v):
+                bad[f] += 1
+                continue
+            a = v + eps
+            if e_lo[i] * (1.0 + 1e-12) < a < e_hi[i] * (1.0 - 1e-12):
+                continue
+            cand[m] = i
+            m += 1
+        if bad[f]:
+            break  # the caller raises: no events of this frame or later ones
+        if m == 0:
+            continue
+        t0 = t_prev if f == 0 else times[f - 1]
+        k, moved = _crossings(i0, i1, t0, times[f], eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s,
+                              seq, jitter_s, jitter_seed, False, cand, m, out_pix, out_t_true, out_t, out_p)
+        if moved == 0:
+            continue
+        if n + k > out_pix.shape[0]:
+            out_pix, out_t_true, out_t, out_p = _grow(out_pix[:n], out_t_true[:n], out_t[:n], out_p[:n], n + k)
+        _crossings(i0, i1, t0, times[f], eps, lref, e_hi, e_lo, cpos, cneg, last_t, refractory_s, seq,
+                   jitter_s, jitter_seed, True, cand, m, out_pix[n:], out_t_true[n:], out_t[n:], out_p[n:])
+        n += k
+    return n, out_pix, out_t_true, out_t, out_p

@@ -18,6 +18,10 @@ def _check_output(output: Path, fmt: str) -> None:
     if fmt == "ecd" and output.exists() and not output.is_dir():
         raise click.BadParameter(f"{output} is an existing file; --format ecd writes a folder",
                                  param_hint="'-o' / '--output'")
+    for name in ("events.txt", "images.txt", "images") if fmt == "ecd" else ():
+        if (output / name).is_symlink():  # before the run: write_ecd refuses it too
+            raise click.BadParameter(f"{output / name} is a symbolic link; it is not written through",
+                                     param_hint="'-o' / '--output'")
 
 
 @click.command()

@@ -5,11 +5,11 @@ threshold mismatch, refractory period, background-activity noise, latency
 jitter, per-event ground truth, counter-based randomness (chunk-independent)
 and two-pass output sizing (count, then fill) as in esim_torch.
 
-Adaptive sampling, two modes (``sampling``):
+Adaptive sampling, three modes (``sampling``):
 
-- ``"verified"`` (the default: renderers whose intensity is a continuous
-  function of time, i.e. exact area coverage, like the analytic renderers and
-  the exact 3-D renderer): after a sample at ``t`` the next step is
+- ``"verified"`` (the default for renderers whose intensity is a continuous
+  function of time, i.e. exact area coverage, like the exact 3-D renderer,
+  unless geometric steps apply): after a sample at ``t`` the next step is
   proposed as ``min(1 / min_rate_hz, max_step_px / v_max,
   dt_prev * min(2, 0.9 lambda C / dL_prev))`` where ``dL_prev`` is the
   previous step's largest ``|Delta L|`` over the image, ``C`` the smallest
@@ -25,17 +25,28 @@ Adaptive sampling, two modes (``sampling``):
   ``dt = lambda C / (v_max max |grad L|)`` with the log gradient from forward
   differences of the current sample, capped as above by ``1 / min_rate_hz``
   and ``max_step_px / v_max``.
-- ``"geometric"`` (exact crossing times only; what ``"auto"`` picks for a
-  renderer whose pixels are monotone in time over a step of ``max_step_px``,
-  ``monotone_step_px``, as the stripes are): steps of
-  ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (the times do
-  not need it), halved while the step's midpoint shows an excursion that
-  hides a crossing (a pixel beyond a level that neither end reaches); an
-  excursion shorter than half a step can still be missed (measured on
-  ``shapes_translation``: 0.05 % of the events, at star tips; none on
-  ``stripes``).
+- ``"geometric"`` (exact crossing times only): steps of
+  ``min(1 / min_rate_hz, max_step_px / v_max)``, no lambda rule (exact times
+  do not need it). What ``"auto"`` picks for the analytic planar renderers:
+
+  * a renderer whose pixels are monotone in time over a step of
+    ``max_step_px`` (``monotone_step_px``, the stripes) has nothing to hide
+    inside a step;
+  * a renderer that names the pixels it cannot prove monotone over a step
+    (``nonmonotone_pixels``, the shapes: the sign of each boundary piece's
+    normal speed, see :func:`evedge.sim._exact._nonmonotone_pixels`) has
+    those sub-sampled (``pixel_intensity`` every :data:`SUBSTEP_PX` of image
+    motion, :data:`EXTREMUM_SPLIT` times finer beside an extremum that may
+    reach a new level): measured, the counts per (pixel, polarity) equal a
+    dense reference (0.02 px verified steps) on both shapes scenes and on
+    thin fast features (``tests/sim/test_completeness.py``);
+  * any other renderer (opt-in) has each step halved while its midpoint shows
+    an excursion hiding a crossing (a pixel beyond a level neither end
+    reaches); an excursion shorter than half a step can still be missed.
 - Renderers with fixed sample times (``next_sample_s``: frames input) are
-  sampled exactly there.
+  sampled exactly there; when they offer ``samples`` (batches of frames) and
+  no sensor effect is on, each batch is one call of a fused scan-and-crossings
+  kernel (:func:`evedge.sim._events._frames_batch`), the same events as frame by frame.
 
 Crossing times (``crossing_times``): ``"exact"`` (the default where the
 renderer offers ``pixel_intensity``, the analytic planar scenes) solves each
@@ -64,15 +75,24 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import _box_spans, _crossings, _max_log_gradient, _noise, _noise_first_arrivals, _scan, _scan_frame
-from ._exact import _crossing_levels, _hidden_crossing, _root_start, _root_step, _refractory_jitter
+from ._events import (_box_spans, _crossings, _frames_batch, _max_log_gradient, _noise, _noise_first_arrivals,
+                      _scan, _scan_frame)
+from ._coverage import _HALF_DIAG
+from ._exact import (_crossing_levels, _drop_marked, _extremum_flags, _hidden_crossing, _path_crossing_levels,
+                     _refractory_jitter, _root_start, _root_step)
+from ._order import _time_pixel_order
 from ._sensor import _lowpass, _sensor_interval, _thin_shot
 from .renderer import GeometricTruth, Renderer
 from .truth import TRUTH_DTYPE, empty_truth, lifetime_us, log_gradient_direction_at
 from evedge.events import EVENT_DTYPE
 
-#: Background-activity noise is generated this far ahead, in fixed blocks of simulated time.
+#: Background-activity noise is generated ahead in fixed blocks of simulated time of at least this length
+#: (each block is a pass over all pixels; the arrivals are each pixel's own sequence, so the block length
+#: does not change them) ...
 _NOISE_BLOCK_S = 0.01
+#: ... and at most this long, aiming at :data:`_NOISE_BLOCK_EVENTS` arrivals per block (memory bound).
+_NOISE_BLOCK_MAX_S = 0.1
+_NOISE_BLOCK_EVENTS = 1e5
 #: Realistic sensor-effect settings (``ConverterParams(**SENSOR_EFFECT_PRESETS[name])``; scenes:
 #: ``[events] effects = name``). ``v2e_noisy``: v2e's ``--dvs_params noisy`` (thresholds 0.2, mismatch
 #: 0.05, photoreceptor cutoff 30 Hz, leak 0.1 Hz with v2e's default 10 % spread, shot noise 5 Hz) with
@@ -86,6 +106,11 @@ SENSOR_EFFECT_PRESETS = {
 SAMPLING = ("auto", "verified", "predicted", "geometric")
 #: Values of ``ConverterParams.crossing_times``.
 CROSSING_TIMES = ("auto", "exact", "linear")
+#: Geometric steps: a pixel the renderer cannot prove monotone over a step is sub-sampled so that the
+#: image moves at most this far (px) between its sub-samples.
+SUBSTEP_PX = 0.1
+#: ... and a sub-interval beside an extremum that may reach a new level is split this many times more.
+EXTREMUM_SPLIT = 16
 #: Exact crossing times: the root finder stops when the bracket is narrower than this (s).
 EXACT_TOL_S = 1e-10
 #: ... or when the secant through the last two evaluations puts the root this close (s) after the point
@@ -134,9 +159,11 @@ class ConverterParams:
     min_step_s : float
         Smallest step (guards against stalls on discontinuous intensity).
     sampling : str
-        ``"auto"`` (verified unless the renderer has an attribute
-        ``continuous_in_time`` set to False), ``"verified"`` or
-        ``"predicted"`` (see the module docstring).
+        ``"auto"`` (geometric with exact crossing times on a renderer with
+        ``monotone_step_px`` above ``max_step_px`` or with
+        ``nonmonotone_pixels``; else verified unless the renderer has an
+        attribute ``continuous_in_time`` set to False), ``"verified"``,
+        ``"predicted"`` or ``"geometric"`` (see the module docstring).
     crossing_times : str
         ``"auto"`` (exact when the renderer offers ``pixel_intensity`` and
         geometric truth, as the analytic planar renderers do, and no sensor
@@ -278,8 +305,8 @@ class EventConverter:
             raise TypeError(f"duration_s must be a number of seconds, got {duration_s!r}")
         if not (duration_s > 0 and math.isfinite(duration_s)):
             raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
-        if duration_s > 9e12:  # event times are int64 microseconds (the scene's MAX_DURATION_S)
-            raise ValueError(f"duration_s must be <= 9e12, got {duration_s!r}")
+        if duration_s > 9e9:  # the truth's t_ns are int64 nanoseconds (the scene's MAX_DURATION_S)
+            raise ValueError(f"duration_s must be <= 9e9, got {duration_s!r}")
         self.renderer = renderer
         self.params = params
         self.seed = int(seed)
@@ -291,6 +318,8 @@ class EventConverter:
         mode = params.sampling
         # renderers with fixed sample times (frames input): sample exactly there, nothing to verify
         self._fixed = callable(getattr(renderer, "next_sample_s", None))
+        # ... in batches of frames (frames input without sensor effects): set below, after sensor_effects
+        self._batched = False
         self._source_name = str(getattr(renderer, "name", type(renderer).__name__))
         self._has_flow = bool(getattr(renderer, "has_flow", True))
         if mode == "auto":
@@ -308,14 +337,24 @@ class EventConverter:
                              "(lowpass_cutoff_hz, leak_rate_hz, shot_noise_rate_hz, noise_resets): they act on "
                              "the sampled log intensity; use 'linear' or 'auto'")
         self.exact = can_exact and params.crossing_times != "linear" and not self.sensor_effects
+        self._batched = (self._fixed and not self.sensor_effects and not self._has_flow
+                         and callable(getattr(renderer, "samples", None)))
+        # frames per batch: about 16 MB of float64 images (48 at 240x180, 2 at 1280x720)
+        self._batch_n = max(1, (1 << 24) // (8 * self.width * self.height))
         if mode == "geometric" and not self.exact:
             raise ValueError("ConverterParams.sampling='geometric' needs exact crossing times (a renderer with "
                              "pixel_intensity and point_truth, no sensor effects)")
         # exact crossing times do not need the lambda rule: only the geometric bound on the step
         # "auto": geometric too where the renderer guarantees monotone pixels over a max_step_px step
         # (then no crossing can hide inside a step and the lambda rule buys nothing)
-        self.geometric_steps = mode == "geometric" or (
-            mode == "auto" and self.exact and params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0)))
+        # renderers that name the pixels that may be non-monotone over a step (nonmonotone_pixels: the
+        # shapes) get those pixels sub-sampled, so no crossing hides inside a step anywhere
+        self._subsample = self.exact and callable(getattr(renderer, "nonmonotone_pixels", None))
+        self._grid = callable(getattr(renderer, "pixel_intensity_grid", None))
+        # monotone: no pixel can hide a crossing inside a step (then the midpoint check is skipped too)
+        self._monotone = params.max_step_px < float(getattr(renderer, "monotone_step_px", 0.0))
+        self.geometric_steps = mode == "geometric" or (mode == "auto" and self.exact and (
+            self._subsample or self._monotone))
         if self.geometric_steps:
             self.verified = False
         self.reset()
@@ -372,6 +411,11 @@ class EventConverter:
         self.n_samples = 0
         self.n_rejected = 0
         self.n_root_steps = 0
+        self._batch_events = 0  # events of the last batch of frames (sizes the next one's buffers)
+        self.n_subsampled = 0  # pixel-steps sub-sampled (geometric steps, non-monotone pixels)
+        self.n_extremum_splits = 0  # their sub-intervals sampled more densely around extrema
+        self._nm = self._empty[0]  # this step's non-monotone pixels
+        self._nm_mask = np.zeros(npix, dtype=np.bool_) if self._subsample else None
         self.done = False
 
     # ------------------------------------------------------------------ sampling
@@ -464,6 +508,19 @@ class EventConverter:
             self._i = i1
             self.n_samples += 1
             return
+        if self.geometric_steps and self._subsample:
+            # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz; the
+            # pixels the renderer cannot prove monotone over the step are sub-sampled (_path_crossings)
+            t1 = min(self.t + self._propose(), self.duration_s)
+            i1, spans, n_spans = self._candidate(t1)
+            n_cand, _ = self._scan(self._i, i1, spans, n_spans)
+            disp = float(self.renderer.max_speed_px_s(self.t, t1)) * (t1 - self.t)
+            self._nm = np.ascontiguousarray(self.renderer.nonmonotone_pixels(self.t, t1, _HALF_DIAG + disp + 1e-6),
+                                            dtype=np.int64)
+            self._nm_disp = disp
+            self._advance(t1, i1, n_cand)
+            self._nm = self._empty[0]
+            return
         if self.geometric_steps:
             # exact crossing times: steps bounded by the image motion (max_step_px) and min_rate_hz, halved
             # while the midpoint shows an excursion hiding a crossing
@@ -471,7 +528,8 @@ class EventConverter:
             while True:
                 t1 = min(self.t + dt, self.duration_s)
                 i1, spans, n_spans = self._candidate(t1)
-                if t1 - self.t <= p.min_step_s * 1.0000001 or not self._hides_crossing(0.5 * (self.t + t1)):
+                if (self._monotone or t1 - self.t <= p.min_step_s * 1.0000001
+                        or not self._hides_crossing(0.5 * (self.t + t1))):
                     break
                 self.n_rejected += 1
                 dt = max(p.min_step_s, 0.5 * (t1 - self.t))
@@ -504,6 +562,47 @@ class EventConverter:
             self._dt = step * grow
         self._advance(t1, i1, n_cand)
 
+    def _frames_step(self, limit: float) -> None:
+        """Frames input in batches: the renderer's next samples up to the first at or after ``limit``, one kernel call.
+
+        The samples are those :meth:`_step` would take one by one (the
+        renderer's ``samples`` follows ``next_sample_s``), and so are the
+        events, the state and the noise afterwards.
+        """
+        p = self.params
+        times, images = self.renderer.samples(self.t, limit, self._batch_n)
+        times = np.minimum(np.asarray(times, dtype=np.float64), self.duration_s)
+        n = times.shape[0]
+        name = type(self.renderer).__name__
+        if n == 0 or not (times[0] > self.t and np.all(times[1:] > times[:-1])):
+            raise ValueError(f"renderer {name}.samples({self.t}) returned times that do not increase after it: "
+                             f"{times[:5]!r}")
+        images = np.asarray(images)
+        if images.shape != (n, self.height, self.width):
+            raise ValueError(f"renderer {name}.samples({self.t}) returned images of shape {images.shape}, "
+                             f"expected ({n}, {self.height}, {self.width})")
+        flat = np.ascontiguousarray(images, dtype=np.float64).reshape(-1)
+        bad = np.zeros(n, dtype=np.int64)
+        cap = max(1024, 2 * self._batch_events)
+        out = (np.empty(cap, dtype=np.int64), np.empty(cap), np.empty(cap), np.empty(cap, dtype=np.bool_))
+        m, pix, t_true, t_emit, pol = _frames_batch(
+            flat, n, times, self._i, self.t, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos, self.cneg,
+            self.last_t, p.refractory_us * 1e-6, self.seq, p.jitter_us * 1e-6, self._jitter_seed, bad, self._cand,
+            *out)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"{self._source_name}: the sample at t = {float(times[k])!r} s has {int(bad[k])} "
+                             "non-finite pixel values")
+        self._batch_events = m
+        if m:
+            self._pending.append((pix[:m], t_emit[:m], t_true[:m], pol[:m], None))  # truth at the flush
+        t1 = float(times[-1])
+        self.t = t1
+        self._i = flat[(n - 1) * self.width * self.height:].copy()  # the renderer may reuse its buffer
+        self.n_samples += n
+        if p.noise_rate_hz > 0 and t1 > self._noise_until:
+            self._noise_block(t1)
+
     def _advance(self, t1: float, i1: np.ndarray, n_cand: int) -> None:
         """Emit the events of ``[self.t, t1]`` (``n_cand`` candidates scanned) and make ``t1`` the present sample."""
         self._interval(self.t, t1, self._i, i1, n_cand)
@@ -529,6 +628,13 @@ class EventConverter:
             return
         n = moved = 0
         if self.exact:
+            nm = self._nm
+            if nm.shape[0]:
+                if n_cand:
+                    self._nm_mask[nm] = True
+                    n_cand = _drop_marked(self._cand, n_cand, self._nm_mask)
+                    self._nm_mask[nm] = False
+                self._path_crossings(t0, t1, i0, i1, nm)
             if n_cand:
                 self._raw_crossings(t0, t1, i0, i1, n_cand)
             n_cand = 0  # the linear path below has nothing left to do
@@ -556,7 +662,9 @@ class EventConverter:
         empty_i, empty_f, empty_b = self._empty
         # noise is drawn in fixed blocks of simulated time (cheaper than at every sample; the
         # block grid does not depend on the samples, so neither does the noise)
-        self._noise_until = (math.floor(t1 / _NOISE_BLOCK_S) + 1) * _NOISE_BLOCK_S
+        block = min(_NOISE_BLOCK_MAX_S, max(_NOISE_BLOCK_S, _NOISE_BLOCK_EVENTS / (p.noise_rate_hz * self.width
+                                                                                  * self.height)))
+        self._noise_until = (math.floor(t1 / block) + 1) * block
         nargs = (self._noise_until, p.noise_rate_hz, self._noise_time_seed, self._noise_pol_seed, self.noise_next,
                  self.noise_count)
         m = _noise(*nargs, False, empty_i, empty_f, empty_b)
@@ -666,6 +774,55 @@ class EventConverter:
         # the sample buffers are reused: keep the two end values of every crossing's pixel
         self._raw.append((pix, level, pol, t0, t1, i0[pix], i1[pix]))
 
+    def _path_crossings(self, t0, t1, i0, i1, nm) -> None:
+        """Exact mode, geometric steps: the crossings of the non-monotone pixels ``nm``, from sub-samples.
+
+        Each pixel is evaluated (``pixel_intensity``) at ``M - 1`` evenly spaced
+        interior times, ``M = ceil(displacement / SUBSTEP_PX)``, so between two
+        of its sub-samples the image moves at most :data:`SUBSTEP_PX`. Around
+        the path's extrema that may reach a new level (:func:`_extremum_flags`:
+        a vertex passing the pixel makes a V whose tip can fall between two
+        sub-samples) the sub-intervals get :data:`EXTREMUM_SPLIT` - 1 more
+        samples each. The crossings are found along the path
+        (:func:`_path_crossing_levels`), each with the sub-interval that
+        brackets it, and solved by :meth:`_refine` as the others.
+        """
+        p = self.params
+        m = max(2, int(math.ceil(self._nm_disp / SUBSTEP_PX)))
+        tt = t0 + (t1 - t0) * (np.arange(1, m) / m)
+        k = nm.shape[0]
+        if self._grid:
+            vals = np.ascontiguousarray(self.renderer.pixel_intensity_grid(nm, tt), dtype=np.float64)
+        else:
+            vals = np.ascontiguousarray(self.renderer.pixel_intensity(np.repeat(nm, m - 1), np.tile(tt, k)),
+                                        dtype=np.float64).reshape(k, m - 1)
+        self.n_subsampled += k
+        flags = np.zeros((k, m), dtype=np.bool_)
+        nf = _extremum_flags(nm, vals, i0, i1, p.log_eps, self.lref, self.cpos, self.cneg, flags)
+        if nf:
+            jq = np.nonzero(flags)  # row-major: the order _path_crossing_levels walks them
+            ends = np.concatenate([[t0], tt, [t1]])
+            ta, tb = ends[jq[1]], ends[jq[1] + 1]
+            frac = np.arange(1, EXTREMUM_SPLIT) / EXTREMUM_SPLIT
+            rt = np.ascontiguousarray(ta[:, None] + (tb - ta)[:, None] * frac[None, :])
+            rvals = np.ascontiguousarray(self.renderer.pixel_intensity(np.repeat(nm[jq[0]], EXTREMUM_SPLIT - 1),
+                                                                       rt.ravel()), dtype=np.float64).reshape(rt.shape)
+            self.n_extremum_splits += nf
+        else:
+            rt = rvals = np.empty((0, EXTREMUM_SPLIT - 1))
+        e = np.empty(0)
+        b = self._empty[2]
+        args = (nm, vals, tt, flags, rvals, rt, i0, i1, t0, t1, p.log_eps, self.lref, self.e_hi, self.e_lo, self.cpos,
+                self.cneg)
+        n = _path_crossing_levels(*args, False, self._empty[0], e, b, e, e, e, e)
+        if not n:
+            return
+        out = (np.empty(n, dtype=np.int64), np.empty(n), np.empty(n, dtype=np.bool_), np.empty(n), np.empty(n),
+               np.empty(n), np.empty(n))
+        _path_crossing_levels(*args, True, *out)
+        pix, level, pol, ta, tb, ia, ib = out
+        self._raw.append((pix, level, pol, ta, tb, ia, ib))
+
     def _refine(self) -> None:
         """Exact mode: solve every pending crossing for its instant, then apply refractory and jitter.
 
@@ -686,10 +843,15 @@ class EventConverter:
         self._raw = []
         p = self.params
         pix, level, pol, ia, ib = (np.concatenate([c[k] for c in parts]) for k in (0, 1, 2, 5, 6))
-        sizes = [c[0].shape[0] for c in parts]
-        ta = np.repeat(np.array([c[3] for c in parts]), sizes)
-        tb = np.repeat(np.array([c[4] for c in parts]), sizes)
         n = pix.shape[0]
+        # the bracket of each crossing: the part's step, or per crossing (sub-sampled pixels)
+        ta, tb = np.empty(n), np.empty(n)
+        start = 0
+        for c in parts:
+            stop = start + c[0].shape[0]
+            ta[start:stop] = c[3]
+            tb[start:stop] = c[4]
+            start = stop
         fa, fb, tc = np.empty(n), np.empty(n), np.empty(n)
         active = np.empty(n, dtype=np.bool_)
         side = np.zeros(n, dtype=np.int8)
@@ -801,13 +963,21 @@ class EventConverter:
                 self._pending.append((pix[keep], t[keep], t_true[keep], pol[keep], last[keep]))
         if not np.all(done):
             pix, t, t_true, pol, last, t_us = (a[done] for a in (pix, t, t_true, pol, last, t_us))
-        key = t_us * (self.width * self.height) + pix
-        # the parts are nearly sorted runs: a stable sort of the one key is fast, and equals the
-        # lexsort below when no key repeats
-        order = np.argsort(key, kind="stable")
-        sorted_key = key[order]
-        if np.any(sorted_key[1:] == sorted_key[:-1]):
-            order = np.lexsort((t, key))
+        npix = self.width * self.height
+        n = t_us.shape[0]
+        # order by (t_us, pix): counting sorts when the time range is not much larger than the events (a
+        # flush spans about a chunk), else a stable sort of the one key (the same order); both equal the
+        # lexsort below when no (t_us, pix) pair repeats
+        if n and int(t_us.max()) - int(t_us.min()) <= 4 * n + 100_000:
+            order = np.empty(n, dtype=np.int64)
+            ties = _time_pixel_order(t_us, np.ascontiguousarray(pix, dtype=np.int64), npix, order)
+        else:
+            key = t_us * npix + pix
+            order = np.argsort(key, kind="stable")
+            sorted_key = key[order]
+            ties = bool(np.any(sorted_key[1:] == sorted_key[:-1]))
+        if ties:
+            order = np.lexsort((t, t_us * npix + pix))
         return pix[order], t_true[order], pol[order], last[order], t_us[order], t[order]
 
     def _events(self, pix, t_us, pol):
@@ -881,8 +1051,12 @@ class EventConverter:
             raise ValueError("process: until_s must not be NaN")
         if self.done:
             return np.empty(0, dtype=EVENT_DTYPE), np.empty(0, dtype=TRUTH_DTYPE)
-        while self.t < min(until_s, self.duration_s):
-            self._step()
+        limit = min(until_s, self.duration_s)
+        while self.t < limit:
+            if self._batched:
+                self._frames_step(limit)
+            else:
+                self._step()
         if self.t >= self.duration_s:
             self.done = True
             return self._flush(None)

@@ -209,6 +209,15 @@ class DatasetRun:
     failed: int
 
 
+def _refuse_links(out_dir: Path) -> None:
+    """A symbolic link anywhere in the dataset folder would make the run write or delete outside it."""
+    for root, dirs, files in os.walk(out_dir):  # links to folders are listed, never entered
+        for name in dirs + files:
+            if os.path.islink(os.path.join(root, name)):
+                raise DatasetError(f"{os.path.join(root, name)} is a symbolic link: {out_dir} is not written into "
+                                   "(a dataset folder holds only its own files)")
+
+
 def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers: int | None = None,
                      scheduler: str | None = None, client=None, retries: int = 2, progress: bool = True,
                      task_fn=generate_sequence) -> DatasetRun:
@@ -273,6 +282,7 @@ def generate_dataset(spec: DatasetSpec, out_dir, *, layouts=("evedge",), workers
         lock.close()
         raise DatasetError(f"{out_dir} is being written by another run (its .lock is held)") from None
     try:
+        _refuse_links(out_dir)
         _check_folder(spec, out_dir, layouts)
         # temporary files (".<name>.XXXX.tmp", evedge.io._atomic) left by a run killed mid-write;
         # the lock says no other run is writing here

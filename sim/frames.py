@@ -55,10 +55,81 @@ import numpy as np
 #: Image file suffixes read from a frames folder (sorted by name).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm")
 UPSAMPLING = ("log", "flow")
+#: Largest batch of images :meth:`FramesRenderer.samples` computes (decoded, resized, interpolated) in one call.
+_FILLED_BATCH_BYTES = 1 << 20
 
 
 class FramesError(ValueError):
     """Unreadable or inconsistent frames input; the message names the file and the problem."""
+
+
+#: Longest span of frame times (s): the truth's ``t_ns`` are int64 nanoseconds (the converter's bound).
+MAX_DURATION_S = 9e9
+#: Working bytes per pixel of a frames run before any event: the decoded frame (up to 4 channels of 16 bit),
+#: its float64 grey, the pair of frames held, sub-frames and flow, and the converter's per-pixel state.
+_BYTES_PER_PIXEL = 8 + 8 * 6 + 96
+
+
+def _check_size(width: int, height: int, source: str) -> None:
+    """Refuse a frame size outside the sensor's range or too large for memory, before decoding anything."""
+    from evedge._resources import memory_shortfall
+
+    if not (1 <= width <= 32767 and 1 <= height <= 32767):
+        raise FramesError(f"{source}: frame size {width}x{height} is outside 1..32767 pixels per side")
+    short = memory_shortfall(width * height * _BYTES_PER_PIXEL, f"{source}: frames of {width}x{height}")
+    if short:
+        raise FramesError(short)
+
+
+def _image_size(data: bytes, source: str) -> tuple[int, int]:
+    """``(width, height)`` from an image file's header (PIL parses it without decoding the pixels).
+
+    A JPEG must end with its end-of-image marker: it has no checksum, and
+    OpenCV decodes a cut one with its missing rows grey.
+    """
+    import io
+    import warnings
+
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # DecompressionBombWarning: the size is checked here
+            Image.MAX_IMAGE_PIXELS = None
+            with Image.open(io.BytesIO(data)) as im:
+                width, height, kind = im.size[0], im.size[1], im.format
+    except Image.UnidentifiedImageError:
+        raise FramesError(f"{source}: not a readable image (unknown or damaged header)") from None
+    except Exception as err:  # noqa: BLE001 - PIL raises many types for a damaged header
+        raise FramesError(f"{source}: not a readable image ({type(err).__name__}: {err})") from None
+    if kind == "JPEG" and not data.rstrip(b"\0\r\n\t ")[-2:] == b"\xff\xd9":
+        raise FramesError(f"{source}: the JPEG ends before its end-of-image marker (cut or damaged)")
+    if kind == "PNG":
+        _check_png_chunks(data, source)
+    return width, height
+
+
+def _check_png_chunks(data: bytes, source: str) -> None:
+    """Every chunk inside the file and matching its CRC, up to IEND.
+
+    OpenCV's PNG reader spends seconds per GB that a damaged chunk length
+    declares past the end of the file (a flipped byte: a hang); libpng
+    would ignore a damaged ancillary chunk.
+    """
+    import zlib
+
+    pos = 8
+    while pos + 12 <= len(data):
+        length = int.from_bytes(data[pos:pos + 4], "big")
+        kind = data[pos + 4:pos + 8]
+        if pos + 12 + length > len(data):
+            raise FramesError(f"{source}: PNG chunk {kind!r} at byte {pos} claims {length} bytes past the end of the file")
+        if zlib.crc32(data[pos + 4:pos + 8 + length]) != int.from_bytes(data[pos + 8 + length:pos + 12 + length], "big"):
+            raise FramesError(f"{source}: PNG chunk {kind!r} at byte {pos} fails its CRC: the file is corrupt")
+        if kind == b"IEND":
+            return
+        pos += 12 + length
+    raise FramesError(f"{source}: the PNG has no IEND chunk (cut short)")
 
 
 def _grey(img: np.ndarray, source: str) -> np.ndarray:
@@ -135,6 +206,9 @@ def _check_times(t: np.ndarray, source: str) -> np.ndarray:
     if bad.size:
         i = int(bad[0]) + 1
         raise FramesError(f"{source}: frame times must increase: frame {i} at {float(t[i])!r} s follows {float(t[i - 1])!r} s")
+    if not float(t[-1] - t[0]) <= MAX_DURATION_S:
+        raise FramesError(f"{source}: frame times span {float(t[-1] - t[0])!r} s, more than {MAX_DURATION_S:g} s "
+                          f"(frame 0 at {float(t[0])!r} s, frame {t.shape[0] - 1} at {float(t[-1])!r} s)")
     return t
 
 
@@ -152,12 +226,21 @@ class FrameSource:
         What to call the source in messages and metadata.
     """
 
-    def __init__(self, times_s, width, height, name, reader):
+    def __init__(self, times_s, width, height, name, reader, block=None):
         self.times_s = _check_times(np.asarray(times_s, dtype=np.float64), name)
         self.width = int(width)
         self.height = int(height)
         self.name = str(name)
         self._reader = reader  # reader(k) -> float64 (H, W) frame k, called with k = 0, 1, 2, ...
+        self._block = block  # block(k0, k1) -> float64 (k1 - k0, H, W) frames as they are, without a copy
+
+    def block(self, k0: int, k1: int):
+        """Frames ``k0 .. k1 - 1`` as one float64 ``(k1 - k0, H, W)`` array without a copy, or None.
+
+        Only in-memory float64 frames have one (:func:`frames_from_arrays`);
+        the others are read frame by frame with :meth:`frame`.
+        """
+        return None if self._block is None else self._block(k0, k1)
 
     def __len__(self) -> int:
         return int(self.times_s.shape[0])
@@ -209,10 +292,13 @@ class _VideoReader:
                 self.cap.release()
             self.cap = self.cv2.VideoCapture(str(self.path))
             self.next = 0
-        while self.next < k:
-            self.cap.grab()
-            self.next += 1
-        ok, img = self.cap.read()
+        try:
+            while self.next < k:
+                self.cap.grab()
+                self.next += 1
+            ok, img = self.cap.read()
+        except self.cv2.error as err:
+            raise FramesError(f"{self.path}: cannot decode frame {k}: OpenCV: {str(err).strip()}") from None
         self.next += 1
         if not ok:
             raise FramesError(f"{self.path}: cannot decode frame {k}")
@@ -256,22 +342,30 @@ def open_video(path, *, timestamps=None, rate_hz=None) -> FrameSource:
     path = Path(path)
     if not path.is_file():
         raise FramesError(f"{path}: no such video file")
-    cap = cv2.VideoCapture(str(path))
     try:
-        if not cap.isOpened():
-            raise FramesError(f"{path}: OpenCV cannot open it as a video")
-        container = []
-        while cap.grab():  # one pass without decoding: the frame count and the container's times
-            container.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
-    finally:
-        cap.release()
-    cap = cv2.VideoCapture(str(path))  # a second pass decodes the first frame (its size)
-    try:
-        ok, first = cap.read()
-    finally:
-        cap.release()
+        cap = cv2.VideoCapture(str(path))
+        try:
+            if not cap.isOpened():
+                raise FramesError(f"{path}: OpenCV cannot open it as a video")
+            # the stream's declared size, before FFmpeg decodes (and allocates) a frame
+            declared = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+            if declared != (0, 0):
+                _check_size(*declared, str(path))
+            container = []
+            while cap.grab():  # one pass without decoding: the frame count and the container's times
+                container.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
+        finally:
+            cap.release()
+        cap = cv2.VideoCapture(str(path))  # a second pass decodes the first frame (its size)
+        try:
+            ok, first = cap.read()
+        finally:
+            cap.release()
+    except cv2.error as err:
+        raise FramesError(f"{path}: OpenCV cannot read it as a video: {str(err).strip()}") from None
     if not container or not ok:
         raise FramesError(f"{path}: no decodable frame")
+    _check_size(first.shape[1], first.shape[0], str(path))
     img = _grey(first, f"{path}: frame 0")
     t = _times(len(container), str(path), np.array(container), timestamps, rate_hz)
     return FrameSource(t, img.shape[1], img.shape[0], str(path), _VideoReader(path))
@@ -322,10 +416,30 @@ def open_frames_folder(path, *, timestamps=None, rate_hz=None) -> FrameSource:
             # an Event Camera Dataset folder: images.txt beside images/, "t images/frame.png" per line
             timestamps = path.parent / "images.txt"
 
+    size = []  # the first frame's (width, height): every frame's header is checked against it before decoding
+
     def read(k):
-        img = cv2.imread(str(files[k]), cv2.IMREAD_UNCHANGED)
+        try:
+            data = files[k].read_bytes()
+        except OSError as err:
+            raise FramesError(f"{files[k]}: cannot read it: {err.strerror or err}") from None
+        width, height = _image_size(data, str(files[k]))
+        if not size:
+            _check_size(width, height, str(files[k]))
+            size.append((width, height))
+        elif (width, height) != size[0]:
+            raise FramesError(f"{files[k]}: frame {k} is {width}x{height}, expected {size[0][0]}x{size[0][1]} "
+                              "like the first frame")
+        try:
+            img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error as err:
+            raise FramesError(f"{files[k]}: OpenCV cannot decode it: {str(err).strip()}") from None
         if img is None:
             raise FramesError(f"{files[k]}: OpenCV cannot read it as an image")
+        if img.shape[:2] != (height, width):
+            raise FramesError(f"{files[k]}: decoded as {img.shape[1]}x{img.shape[0]}, its header says {width}x{height}")
+        if img.dtype.kind == "f" and not (np.isfinite(img).all() and img.min() >= 0):  # float TIFF
+            raise FramesError(f"{files[k]}: float pixels must be finite and >= 0")
         return _grey(img, str(files[k]))
 
     first = read(0)
@@ -346,8 +460,11 @@ def frames_from_arrays(frames, times_s, name: str = "<frames>") -> FrameSource:
         raise FramesError(f"{name}: {frames.shape[0]} frames but times_s has shape {times_s.shape}")
     if not np.all(np.isfinite(times_s)):
         raise FramesError(f"{name}: times_s must be finite")
+    block = None
+    if frames.dtype == np.float64 and frames.flags.c_contiguous:
+        block = lambda k0, k1: frames[k0:k1]  # noqa: E731  (the frames as _grey returns them: no copy)
     return FrameSource(times_s, frames.shape[2], frames.shape[1], name,
-                       lambda k: _grey(frames[k], f"{name}: frame {k}"))
+                       lambda k: _grey(frames[k], f"{name}: frame {k}"), block)
 
 
 class FramesRenderer:
@@ -397,6 +514,7 @@ class FramesRenderer:
         self._k = -1  # frame interval [k, k + 1] held
         self._pair = None
         self._next = None  # (time, k, j) of the last next_sample_s answer
+        self._buf = None  # images of the last samples() call (reused)
 
     # sample times: frame k at _t[k], sub-sample j of interval k at _t[k] + j / upsample * (_t[k+1] - _t[k])
     def _sample_time(self, k, j):
@@ -497,6 +615,52 @@ class FramesRenderer:
             return lg  # linear frames as they are
         return np.exp(lg) - self.eps
 
+    def samples(self, t_s: float, until_s: float, max_n: int):
+        """The next samples after ``t_s`` in one array: ``(times_s, images)``, as :meth:`next_sample_s` and
+        :meth:`intensity` give them one by one.
+
+        At most ``max_n`` samples, and about 1 MB of them when the images are
+        computed here (read, resized, interpolated: the converter then scans
+        them while they are in the cache); the last one is the first at or
+        after ``until_s`` (or the last frame). ``images`` is ``(n, H, W)`` float64:
+        a view of in-memory float64 frames when there is no upsampling,
+        resizing or log input, else a buffer reused by the next call.
+        """
+        last = len(self._t) - 1
+        t = self.next_sample_s(t_s)
+        k, j = self._next[1:]
+        times, kj = [t], [(k, j)]
+        if not (self.upsample == 1 and not self.log_input and self.resize is None and self.source._block is not None):
+            # images computed here are scanned right after: a batch that stays in the cache (about 1 MB; a
+            # 16 MB batch was slower than frame by frame)
+            max_n = min(max_n, max(1, _FILLED_BATCH_BYTES // (8 * self.width * self.height)))
+        while len(times) < max_n and t < until_s and k < last:
+            # the successor of sample (k, j): the smallest sample time after t, as next_sample_s(t)
+            while k < last:
+                j += 1
+                if j == self.upsample:
+                    k, j = k + 1, 0
+                tj = self._sample_time(k, j)
+                if tj > t:
+                    break
+            else:
+                break
+            t = tj
+            times.append(t)
+            kj.append((k, j))
+        n = len(times)
+        times = np.array(times)
+        if self.upsample == 1 and not self.log_input and self.resize is None:
+            view = self.source.block(kj[0][0], kj[0][0] + n)
+            if view is not None:
+                return times, view
+        if self._buf is None or self._buf.shape[0] < n:
+            self._buf = np.empty((n, self.height, self.width))
+        for r, (tk, (k, j)) in enumerate(zip(times, kj)):
+            self._next = (float(tk), k, j)
+            self._buf[r] = self.intensity(float(tk))
+        return times, self._buf[:n]
+
     def flow(self, t_s: float):
         return None
 
@@ -508,6 +672,24 @@ class FramesRenderer:
 
     def close(self) -> None:
         self.source.close()
+
+
+def _check_memory(renderer: FramesRenderer, params) -> None:
+    """Refuse a run whose per-pixel state and noise events cannot fit, before any work (as scenes' simulate)."""
+    from evedge._resources import memory_shortfall
+    from evedge.events import EVENT_DTYPE
+
+    from .truth import TRUTH_DTYPE
+
+    pixels = renderer.width * renderer.height
+    noise_events = params.noise_rate_hz * pixels * renderer.duration_s
+    # events and truth are held in chunks, then concatenated once: twice their size at the end
+    needed = pixels * _BYTES_PER_PIXEL + 2 * noise_events * (EVENT_DTYPE.itemsize + TRUTH_DTYPE.itemsize)
+    short = memory_shortfall(needed, f"{renderer.name}: {renderer.width}x{renderer.height} for "
+                                     f"{renderer.duration_s:g} s of frames (about {noise_events:.3g} noise events "
+                                     f"at noise_rate_hz={params.noise_rate_hz:g})")
+    if short:
+        raise FramesError(f"{short}; lower noise_rate_hz or give shorter frame times")
 
 
 def simulate_frames(source: FrameSource, params=None, *, seed: int = 0, log_input: bool = False, upsample: int = 1,
@@ -565,6 +747,7 @@ def simulate_frames(source: FrameSource, params=None, *, seed: int = 0, log_inpu
     renderer = FramesRenderer(source, log_input=log_input, eps=params.log_eps, upsample=upsample,
                               interpolation=interpolation, resize=resize)
     try:
+        _check_memory(renderer, params)
         conv = EventConverter(renderer, params, seed=seed, duration_s=renderer.duration_s)
         ev_parts, tr_parts = [], []
         with tqdm(total=len(source) - 1, unit="frame", desc=f"simulate {Path(source.name).name}",
@@ -572,7 +755,9 @@ def simulate_frames(source: FrameSource, params=None, *, seed: int = 0, log_inpu
             done = 0
             t = 0.0
             while not conv.done:
-                t = min(renderer.duration_s, t + chunk_s)
+                # a chunk reaches at least the next frame: a long gap between frames is one chunk, not many
+                k = int(np.searchsorted(renderer._t, t, side="right"))
+                t = min(renderer.duration_s, max(t + chunk_s, float(renderer._t[min(k, len(renderer._t) - 1)])))
                 ev, tr = conv.process(t)
                 ev_parts.append(ev)
                 tr_parts.append(tr)

@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._coverage import _draw_shapes, _fill_boxes, _render_disk, _render_polygons, _render_stripes
-from ._exact import _shapes_at, _stripes_at, _stripes_truth
+from ._coverage import _HALF_DIAG
+from ._exact import (_nonmonotone_pixels, _shapes_at, _shapes_translating, _shapes_truth_points, _stripes_at,
+                     _stripes_truth)
 from ._nearest import _nearest_outward_normal
 from .motion import PlanarMotion
 from .thin_edges import mark_circle, mark_segments, mark_stripes
@@ -197,6 +199,8 @@ class ShapesRenderer(_CoverageRenderer):
         self._br = np.array([np.max(np.hypot(p.vertices_px[:, 0] - a, p.vertices_px[:, 1] - b))
                              for p, a, b in zip(self.polygons, self._bcx, self._bcy)], dtype=np.float64)
         self._motion_array = None  # the motion's parameters for the pixel_intensity kernel
+        self._nm_stamp = None  # scratch of nonmonotone_pixels
+        self._translating = None  # pixel_intensity's geometry when the motion does not rotate
         self._qx = np.empty_like(self._allx)  # scratch: image positions of the points
         self._qy = np.empty_like(self._allx)
 
@@ -238,18 +242,119 @@ class ShapesRenderer(_CoverageRenderer):
             time (the values of :meth:`intensity`, from clipping against the
             pixel square rather than row accumulation: equal to ~1e-15).
         """
-        m = self.motion
-        if self._motion_array is None:
-            self._motion_array = np.array([m.angle_rad, m.angular_velocity_rad_s, m.angular_acceleration_rad_s2,
-                                           m.angle_amplitude_rad, m.frequency_hz, m.chirp_hz_s, *m.velocity_px_s,
-                                           *m.acceleration_px_s2, *m.amplitude_px], dtype=np.float64)
-        cx, cy = m.center_px
+        cx, cy = self.motion.center_px
         out = np.empty(pix.shape[0])
-        _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_array, self.width, cx, cy,
+        if self._translation_geometry() is not None:
+            bx, by, bcx, bcy, reach2, ccx, ccy = self._translating
+            _shapes_translating(pix, np.ascontiguousarray(t_s, dtype=np.float64), False, self._motion_params(),
+                                self.width, bx, by, self._pstart, self._pvalue, bcx, bcy, reach2, ccx, ccy, self._cr,
+                                self._cvalue, self.background, self._may_overlap, out)
+            return out
+        _shapes_at(pix, np.ascontiguousarray(t_s, dtype=np.float64), self._motion_params(), self.width, cx, cy,
                    self._px, self._py, self._pstart,
                    self._pvalue, self._bcx, self._bcy, self._br, self._cx, self._cy, self._cr, self._cvalue,
                    self.background, self._may_overlap, out)
         return out
+
+    def _translation_geometry(self):
+        """For a motion without rotation: the geometry rotated by its constant angle (image positions at
+        ``s = 0``) for the translating kernels; None when the motion rotates."""
+        m = self.motion
+        if m.angular_velocity_rad_s != 0.0 or m.angular_acceleration_rad_s2 != 0.0 or m.angle_amplitude_rad != 0.0:
+            return None
+        if self._translating is None:
+            cx, cy = m.center_px
+            c, sn = math.cos(m.angle_rad), math.sin(m.angle_rad)
+            rot = lambda x, y: (np.ascontiguousarray(cx + c * (x - cx) - sn * (y - cy)),  # noqa: E731
+                                np.ascontiguousarray(cy + sn * (x - cx) + c * (y - cy)))
+            self._translating = (*rot(self._px, self._py), *rot(self._bcx, self._bcy),
+                                 (self._br + _HALF_DIAG) ** 2, *rot(self._cx, self._cy))
+        return self._translating
+
+    def pixel_intensity_grid(self, pix: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Exact intensity of every flat pixel ``pix[j]`` at every time ``t_s[q]``, as ``out[j, q]``.
+
+        The values of :meth:`pixel_intensity` on the repeated pixels and tiled
+        times (up to rounding, ~1e-15), the motion evaluated once per time
+        when it does not rotate.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from evedge.sim.motion import PlanarMotion
+        >>> r = ShapesRenderer(8, 8, [Circle((3.5, 3.5), 2.0, 0.2)], PlanarMotion(velocity_px_s=(10.0, 0.0)))
+        >>> r.pixel_intensity_grid(np.array([27, 28]), np.array([0.0, 0.05])).shape
+        (2, 2)
+        """
+        pix = np.ascontiguousarray(pix, dtype=np.int64)
+        t_s = np.ascontiguousarray(t_s, dtype=np.float64)
+        geo = self._translation_geometry()
+        if geo is None:
+            return self.pixel_intensity(np.repeat(pix, t_s.shape[0]), np.tile(t_s, pix.shape[0])).reshape(
+                pix.shape[0], t_s.shape[0])
+        out = np.empty(pix.shape[0] * t_s.shape[0])
+        bx, by, bcx, bcy, reach2, ccx, ccy = geo
+        _shapes_translating(pix, t_s, True, self._motion_params(), self.width, bx, by, self._pstart, self._pvalue,
+                            bcx, bcy, reach2, ccx, ccy, self._cr, self._cvalue, self.background, self._may_overlap,
+                            out)
+        return out.reshape(pix.shape[0], t_s.shape[0])
+
+    def nonmonotone_pixels(self, t0_s: float, t1_s: float, reach_px: float) -> np.ndarray:
+        """Pixels whose intensity may not be monotone in time over ``[t0_s, t1_s]``.
+
+        Every other pixel's intensity is monotone over the step, so its
+        crossings are exactly those its end values show (the converter's
+        geometric steps rely on this, see :mod:`evedge.sim.converter`). The
+        rule (:func:`~evedge.sim._exact._nonmonotone_pixels`): the sign of the
+        boundary's normal speed ``v.n`` on every polygon edge and disk arc
+        that comes within ``reach_px`` of the pixel centre; a pixel reached
+        by pieces of both signs (a vertex moving sideways, the two sides of a
+        thin part, a disk's flank, any edge as the motion turns) is returned.
+
+        Parameters
+        ----------
+        t0_s, t1_s : float
+            The step (s), ``t0_s <= t1_s``.
+        reach_px : float
+            Half the pixel diagonal plus the largest image displacement of
+            any point during the step (px).
+
+        Returns
+        -------
+        numpy.ndarray
+            int64 flat pixel indices, each once (a fresh array).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from evedge.sim.motion import PlanarMotion
+        >>> bar = Polygon(np.array([[3.0, -5.0], [3.3, -5.0], [3.3, 9.0], [3.0, 9.0]]), 0.1)
+        >>> r = ShapesRenderer(8, 3, [bar], PlanarMotion(velocity_px_s=(100.0, 0.0)))
+        >>> sorted(int(p) for p in r.nonmonotone_pixels(0.0, 0.005, 0.71 + 0.5) if p < 8)  # row 0: both sides
+        [3, 4]
+        """
+        npix = self.width * self.height
+        if self._nm_stamp is None:
+            self._nm_stamp = np.full(npix, -1, dtype=np.int64)
+            self._nm_bits = np.zeros(npix, dtype=np.uint8)
+            self._nm_out = np.empty(npix, dtype=np.int64)
+            self._nm_step = 0
+        self._nm_step += 1
+        cx, cy = self.motion.center_px
+        n = _nonmonotone_pixels(self._motion_params(), float(t0_s), float(t1_s), float(reach_px), self.width,
+                                self.height, cx, cy, self._px, self._py, self._pstart, self._porient, self._pvalue,
+                                self._cx, self._cy, self._cr, self._cvalue, self.background, self._nm_stamp,
+                                self._nm_bits, self._nm_step, self._nm_out)
+        return self._nm_out[:n].copy()
+
+    def _motion_params(self) -> np.ndarray:
+        """The motion's parameters as one float64 array (for the kernels)."""
+        if self._motion_array is None:
+            m = self.motion
+            self._motion_array = np.array([m.angle_rad, m.angular_velocity_rad_s, m.angular_acceleration_rad_s2,
+                                           m.angle_amplitude_rad, m.frequency_hz, m.chirp_hz_s, *m.velocity_px_s,
+                                           *m.acceleration_px_s2, *m.amplitude_px], dtype=np.float64)
+        return self._motion_array
 
     def flow(self, t_s: float) -> np.ndarray:
         yy, xx = np.mgrid[0:self.height, 0:self.width].astype(np.float64)
@@ -260,24 +365,22 @@ class ShapesRenderer(_CoverageRenderer):
         return self.motion.max_speed_px_s(t0_s, t1_s, self.width, self.height)
 
     def point_truth(self, x, y, t_s):
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        t_s = np.asarray(t_s, dtype=np.float64)
+        x, y, t_s = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (x, y, t_s)))
+        shape = x.shape
+        x, y, t_s = (np.ascontiguousarray(a).ravel() for a in (x, y, t_s))
         m = self.motion
-        theta, w, sx, sy, v0x, v0y = m.state(t_s)
-        c, s = np.cos(theta), np.sin(theta)
         cx, cy = m.center_px
-        rx, ry = x - cx - sx, y - cy - sy
-        vx, vy = v0x - w * ry, v0y + w * rx  # the motion field, as PlanarMotion.flow_at (one state evaluation)
-        qx = np.ascontiguousarray(cx + c * rx + s * ry)  # R(-theta)
-        qy = np.ascontiguousarray(cy - s * rx + c * ry)
+        # the motion field and the point in object coordinates, R(-theta) (PlanarMotion's formulas, one pass)
+        qx, qy, vx, vy, c, s = (np.empty_like(x) for _ in range(6))
+        _shapes_truth_points(x, y, t_s, self._motion_params(), cx, cy, self._translation_geometry() is None,
+                             qx, qy, vx, vy, c, s)
         onx = np.empty_like(qx)
         ony = np.empty_like(qx)
         _nearest_outward_normal(qx, qy, self._px, self._py, self._pstart, self._porient, self._pflip,
                                 self._cx, self._cy, self._cr, self._cflip, onx, ony)
         nx = c * onx - s * ony  # back to the image frame: R(theta)
         ny = s * onx + c * ony
-        return np.asarray(vx, dtype=np.float64), np.asarray(vy, dtype=np.float64), nx, ny
+        return vx.reshape(shape), vy.reshape(shape), nx.reshape(shape), ny.reshape(shape)
 
     def close(self) -> None:
         pass

@@ -23,7 +23,11 @@ ones do). With geometric truth it lets the converter solve every crossing
 for its exact instant instead of interpolating between samples.
 
 A renderer with fixed sample times (frames input) offers
-``next_sample_s(t_s)``; the converter then samples exactly those times.
+``next_sample_s(t_s)``; the converter then samples exactly those times. It may
+also offer ``samples(t_s, until_s, max_n) -> (times_s, images)``: the next
+samples after ``t_s`` (up to ``max_n``, the last one the first at or after
+``until_s``) as one ``(n, H, W)`` array, which the converter turns into
+events in one kernel call per batch (same events as sample by sample).
 
 Renderers that know their geometry may also implement :class:`GeometricTruth`;
 the simulator then takes each event's flow and brightness-gradient direction

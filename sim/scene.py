@@ -26,8 +26,8 @@ SENSOR_PRESETS = {name: dict(width=m.width, height=m.height, fx=m.fx, fy=m.fy, c
                   for name, m in SENSOR_MODELS.items()}
 
 SCENE_KINDS = ("stripes", "shapes", "mesh")
-#: Longest scene: event times are int64 microseconds (2**63 us is about 9.22e12 s).
-MAX_DURATION_S = 9e12
+#: Longest scene: the truth's times are int64 nanoseconds (2**63 ns is about 9.22e9 s; events' us go further).
+MAX_DURATION_S = 9e9
 SHAPE_KINDS = ("triangle", "square", "hexagon", "star", "circle", "polygon")
 
 

@@ -105,8 +105,8 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
     seed : int, optional
         Overrides the scene's seed (threshold mismatch, noise, jitter).
     duration_s : float, optional
-        Overrides the scene's duration (> 0, <= 9e12 s: times are int64
-        microseconds).
+        Overrides the scene's duration (> 0, <= 9e9 s: the truth's times are
+        int64 nanoseconds).
     frame_rate_hz : float, optional
         Rate of the clean frames and edge maps (default: the scene's
         ``frame_rate_hz``, 100 Hz unless set); 0 for none. Frames are at
@@ -147,7 +147,7 @@ def simulate(scene, *, seed: int | None = None, duration_s: float | None = None,
                 or not math.isfinite(duration_s):
             raise ValueError(f"duration_s must be a positive number, got {duration_s!r}")
         if duration_s > MAX_DURATION_S:
-            raise ValueError(f"duration_s must be <= {MAX_DURATION_S:g} (event times are int64 microseconds), "
+            raise ValueError(f"duration_s must be <= {MAX_DURATION_S:g} (the truth's times are int64 nanoseconds), "
                              f"got {duration_s!r}")
         scene = replace(scene, duration_s=float(duration_s))
     if frame_rate_hz is None:

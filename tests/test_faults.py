@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import resource
 import signal
 import subprocess
@@ -195,3 +196,109 @@ def test_kill_9_during_dataset_keeps_only_whole_sequences_and_a_rerun_completes(
     code, text, _ = _run(*args)
     assert code == 0 and "6/6 sequences ok" in text, text
     assert not list(out.rglob("*.tmp"))
+
+
+@pytest.fixture(scope="module")
+def grade_inputs(tmp_path_factory):
+    """A simulated dataset and its detection file (made once by the CLI)."""
+    tmp = tmp_path_factory.mktemp("grade_inputs")
+    code, text, _ = _run("simulate", SCENE, "-o", tmp / "s.h5", "--duration", "0.1", "--quiet")
+    assert code == 0, text
+    code, text, _ = _run("detect", tmp / "s.h5", "-o", tmp / "det", "--fps", "100", "--quiet")
+    assert code == 0, text
+    return tmp / "s.h5", tmp / "det" / "detection.h5"
+
+
+def _grade_digest(out: Path) -> dict[str, str]:
+    """Every file of a grade output and its sha256, its date of writing left out (the rest is reproducible)."""
+    files = {}
+    for p in sorted(out.rglob("*")):
+        if p.is_file():
+            data = re.sub(rb"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC", b"DATE", p.read_bytes())
+            files[p.relative_to(out).as_posix()] = hashlib.sha256(data).hexdigest()
+    return files
+
+
+def test_kill_9_during_grade_leaves_the_old_or_the_new_grade_and_a_rerun_succeeds(tmp_path, grade_inputs):
+    data, det = grade_inputs
+    out = tmp_path / "g"
+    args = lambda method: ("grade", data, "-d", det, "-o", out, "--method", method, "--overwrite")  # noqa: E731
+    runs = {}
+    for method in ("a", "b"):  # two complete grades in OUT itself (the command line is in the report)
+        code, text, full_s = _run(*args(method))
+        assert code == 0, text
+        runs[method] = _grade_digest(out)
+    assert set(runs["a"]) == {".evedge-bench", "grade.csv", "grade.h5", "grade.json", "grade.png", "report.html"}
+    assert all(runs["a"][k] != runs["b"][k] for k in runs["a"] if k != ".evedge-bench")  # a mix would show
+    current = "b"
+    for delay in np.random.default_rng(14).uniform(0.3, 1.1, 2) * full_s:
+        target = "a" if current == "b" else "b"
+        _kill_at(delay, *args(target))
+        seen = _grade_digest(out)
+        assert seen in (runs[current], runs[target]), \
+            f"killed after {delay:.2f} s: {out} is neither the earlier grade nor a complete new one"
+        current = current if seen == runs[current] else target
+    target = "a" if current == "b" else "b"
+    code, text, _ = _run(*args(target))
+    assert code == 0 and "replacing the earlier output" in text and _grade_digest(out) == runs[target], text
+    assert not [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")]  # killed runs' leftovers removed
+
+
+def test_grade_replaces_only_with_overwrite_and_never_through_links(tmp_path, grade_inputs):
+    from click.testing import CliRunner
+
+    from evedge.bench.cli import grade
+
+    data, det = grade_inputs
+
+    def run(*args):
+        res = CliRunner().invoke(grade, [str(data), "-d", str(det), *map(str, args)])
+        assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+        return res.exit_code, res.output
+
+    out = tmp_path / "g"
+    code, text = run("-o", out)
+    assert code == 0, text
+    before = _grade_digest(out)
+    code, text = run("-o", out, "--method", "x")
+    assert code == 2 and "already exists; pass --overwrite to replace it" in text and _grade_digest(out) == before
+    # a folder of other files is not a grade output: refused even with --overwrite
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me")
+    code, text = run("-o", other, "--overwrite")
+    assert code == 2 and "is not an earlier evedge bench output" in text
+    assert [p.name for p in other.iterdir()] == ["notes.txt"]
+    # links: an OUT that is a link, or a link inside OUT, is refused; nothing behind them is touched
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "grade.csv").write_text("not yours")
+    (tmp_path / "link").symlink_to(victim, target_is_directory=True)
+    code, text = run("-o", tmp_path / "link", "--overwrite")
+    assert code != 0 and "symbolic link" in text, text
+    (out / "report.html").unlink()
+    (out / "report.html").symlink_to(victim / "grade.csv")
+    code, text = run("-o", out, "--overwrite")
+    assert code != 0 and "symbolic link" in text, text
+    assert (victim / "grade.csv").read_text() == "not yours" and sorted(os.listdir(victim)) == ["grade.csv"]
+
+
+def test_a_full_disk_during_grade_is_an_error_line_and_keeps_the_earlier_grade(tmp_path, full_disk, grade_inputs):
+    data, det = grade_inputs
+    folder, fsize = full_disk
+    out = folder / "g"
+    code, text, _ = _run("grade", data, "-d", det, "-o", out)
+    assert code == 0, text
+    before = _grade_digest(out)
+    if fsize:  # a file-size limit below the report's size
+        def limit():
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (16 * 1024, 16 * 1024))
+    else:  # the tmpfs filled up to 16 KiB
+        limit = None
+        st = os.statvfs(folder)
+        (folder / "filler").write_bytes(bytes(max(0, st.f_bavail * st.f_frsize - 16 * 1024)))
+    code, text, _ = _run("grade", data, "-d", det, "-o", out, "--method", "x", "--overwrite", preexec_fn=limit)
+    assert code == 1 and "Traceback" not in text and "cannot write the output" in text, text
+    assert _grade_digest(out) == before
+    assert not [p.name for p in folder.iterdir() if p.name.endswith(".tmp")]  # no temp folder left

@@ -33,3 +33,20 @@ def test_documented_figures():
 def test_unknown_preset_names_the_known_ones():
     with pytest.raises(ValueError, match="unknown sensor preset 'gen9'.*gen4"):
         sensor_model("gen9")
+
+
+def test_every_figure_says_where_it_comes_from():
+    fields = ("width", "height", "pixel_pitch_um", "contrast_pos", "contrast_neg", "contrast_sigma", "refractory_us")
+    for m in SENSOR_MODELS.values():
+        for f in fields:
+            where = m.source_of(f)
+            # a documented field names its document; the others say they are typical values
+            assert where.startswith("typical") == (f not in m.documented), (m.name, f, where)
+    assert "4.86 um" in sensor_model("gen4").source_of("pixel_pitch_um")
+    assert "9 um" in sensor_model("dvxplorer").source_of("pixel_pitch_um")
+    assert "2.1 %" in sensor_model("dvs128").source_of("contrast_sigma")
+    # the typical thresholds are v2e's / ESIM's 0.2 log step
+    for name in ("dvxplorer", "gen3", "gen4"):
+        assert sensor_model(name).contrast_pos == sensor_model(name).contrast_neg == 0.2
+    with pytest.raises(ValueError, match="no recorded source for 'fx'"):
+        sensor_model("gen4").source_of("fx")

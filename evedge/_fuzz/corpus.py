@@ -63,11 +63,12 @@ def small_recording(n: int = 2000, seed: int = 0, *, frames: bool = True, truth:
     tr = fr = ed = None
     if truth:
         tr = np.empty(n, dtype=[("vx_px_s", "f8"), ("vy_px_s", "f8"), ("nx", "f8"), ("ny", "f8"),
-                                ("lifetime_us", "f8"), ("is_signal", "?")])
+                                ("lifetime_us", "f8"), ("is_signal", "?"), ("t_ns", "i8")])
         for name in ("vx_px_s", "vy_px_s", "nx", "ny"):
             tr[name] = rng.normal(size=n)
         tr["lifetime_us"] = rng.uniform(1e3, 3e4, n)
         tr["is_signal"] = rng.random(n) > 0.1
+        tr["t_ns"] = t * 1000 + rng.integers(-500, 500, n)  # the instant in ns, t its rounding to us
     if frames:
         yy, xx = np.mgrid[0:180, 0:240]
         fr = Frames(np.array([0, 200_000, 400_000]),
@@ -220,12 +221,84 @@ class Seeds:
             return [m.export(file_type=fmt) for m in (box, ball)]
         return [d.encode() if isinstance(d, str) else bytes(d) for d in self._once("mesh_" + fmt, make)]
 
+    def frames_folders(self) -> list[dict[str, bytes]]:
+        """Frames folders of ``evedge simulate --frames`` as ``{relative name: content}``, the folder ``images``.
+
+        8-bit grey PNGs with ``timestamps.txt``, 16-bit and colour PNGs, JPEGs,
+        and an Event Camera Dataset layout (``images.txt`` beside ``images/``).
+        """
+        def make():
+            import cv2
+
+            frames = _frames_seed()
+            times = b"".join(b"%.6f\n" % (k / 200.0) for k in range(len(frames)))
+            out = []
+            for kind in ("png8", "png16", "pngbgr", "jpg", "ecd"):
+                files = {}
+                for k, img in enumerate(frames):
+                    if kind == "png16":
+                        img = img.astype(np.uint16) * 257
+                    elif kind == "pngbgr":
+                        img = np.stack([img, img[::-1], 255 - img], axis=2)
+                    ext = ".jpg" if kind == "jpg" else ".png"
+                    ok, enc = cv2.imencode(ext, img)
+                    files[f"images/frame_{k:04d}{ext}"] = enc.tobytes()
+                if kind == "ecd":
+                    files["images.txt"] = b"".join(b"%.6f images/frame_%04d.png\n" % (k / 200.0, k)
+                                                   for k in range(len(frames)))
+                else:
+                    files["images/timestamps.txt"] = times
+                out.append(files)
+            return out
+
+        return self._once("frames_folders", make)
+
+    def frames_digest(self, k: int) -> str:
+        """The digest :func:`~evedge._fuzz.targets.frames_folder` gives for the intact folder ``k``."""
+        def make():
+            from .targets import frames_folder
+
+            digests = []
+            for i, files in enumerate(self.frames_folders()):
+                d = self.folder / f"frames_{i}"
+                for rel, content in files.items():
+                    (d / rel).parent.mkdir(parents=True, exist_ok=True)
+                    (d / rel).write_bytes(content)
+                digests.append(frames_folder(str(d / "images")).frames_digest)
+            return digests
+
+        return self._once("frames_digests", make)[k]
+
+    def videos(self) -> list[tuple[str, bytes]]:
+        """Small videos ``(file name, content)``: MJPEG in AVI, MPEG-4 part 2 in MP4, FFV1 in MKV (OpenCV's FFmpeg)."""
+        def make():
+            import cv2
+
+            out = []
+            for fourcc, name in (("MJPG", "clip.avi"), ("mp4v", "clip.mp4"), ("FFV1", "clip.mkv")):
+                path = self.folder / name
+                writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 200.0, (32, 24), isColor=False)
+                for img in _frames_seed():
+                    writer.write(img)
+                writer.release()
+                out.append((name, path.read_bytes()))
+            return out
+
+        return self._once("videos", make)
+
     def dataset_specs(self) -> list[bytes]:
         return self._once("dataset_specs",
                           lambda: [p.read_bytes() for p in sorted((REPO / "scenes" / "datasets").glob("*.toml"))])
 
     def scenes(self) -> list[bytes]:
         return self._once("scenes", lambda: [p.read_bytes() for p in sorted((REPO / "scenes").glob("*.toml"))])
+
+
+def _frames_seed(n: int = 5, width: int = 32, height: int = 24) -> list[np.ndarray]:
+    """``n`` 8-bit grey frames of a bright bar moving right (events at every frame interval)."""
+    xx = np.arange(width)[None, :]
+    return [np.repeat(np.where(np.abs(xx - 6 - 4 * k) < 4, 220, 40).astype(np.uint8), height, axis=0)
+            for k in range(n)]
 
 
 # ---------------------------------------------------------------- AEDAT 4 writer
@@ -401,6 +474,80 @@ def crafted_aedat4(rng) -> tuple[bytes, str]:
     return aedat4_bytes(int(rng.choice([0, 40000, 2**31 - 1])), 16, [([1], [1], [5], [1])]), "aedat_size"
 
 
+def crafted_jpeg(rng, width=32, height=24) -> tuple[bytes, str]:
+    """A JPEG whose frame header (SOF0) declares another size: huge, zero, or off by one from the others."""
+    import cv2
+
+    ok, enc = cv2.imencode(".jpg", _frames_seed(1, width, height)[0])
+    data = bytearray(enc.tobytes())
+    sof = data.find(b"\xff\xc0")
+    h, w = (int(v) for v in rng.choice([[65535, 65535], [65500, 8], [8, 65500], [0, width], [height, 0],
+                                        [height, width + 1], [height + 1, width], [30000, 30000]]))
+    data[sof + 5: sof + 9] = struct.pack(">HH", h, w)
+    return bytes(data), f"jpeg_sof={w}x{h}"
+
+
+_TIMES = ("nan", "inf", "-inf", "-1", "-1e-3", "0", "1e-300", "1e300", "9e12", "9e9", "9.3e9", "1e19", "1e308", "-9e12", "5e-324",
+          "0.0025", "0.005", "1e15", "1e15.001", "", "#", "0.01 0.02", "1,5", "1e-9")
+
+
+def crafted_timestamps(n: int, rng) -> tuple[bytes, str]:
+    """Frame times with odd values: NaN/inf, negative, equal, decreasing, huge, tiny steps, too many or too few."""
+    kind = int(rng.integers(0, 5))
+    t = [f"{k / 200.0:.6f}" for k in range(n)]
+    if kind == 0:
+        i = int(rng.integers(0, n))
+        t[i] = _TIMES[int(rng.integers(0, len(_TIMES)))]
+        what = f"t[{i}]={t[i]}"
+    elif kind == 1:
+        step = float(rng.choice([1e-300, 1e-12, 1e-9, 1e6, 2.25e9, 2.31e9, 1e12, 3e12, -1.0]))
+        start = float(rng.choice([0.0, -1e12, 1e12, 9e12, 1e300]))
+        t = [repr(start + k * step) for k in range(n)]
+        what = f"start={start:g},step={step:g}"
+    elif kind == 2:
+        m = int(rng.choice([0, 1, n - 1, n + 1, 10 * n]))
+        t = [f"{k / 200.0:.6f}" for k in range(m)]
+        what = f"{m}_times"
+    elif kind == 3:
+        i = int(rng.integers(1, n))
+        t[i] = t[i - 1]
+        what = f"t[{i}]=t[{i - 1}]"
+    else:
+        i = int(rng.integers(1, n))
+        t[i - 1], t[i] = t[i], t[i - 1]
+        what = f"swap{i - 1},{i}"
+    return ("\n".join(t) + "\n").encode(), "timestamps:" + what
+
+
+def crafted_video(data: bytes, rng) -> tuple[bytes, str]:
+    """A video whose headers declare another frame size or count: the size pairs (32, 24) of the container and
+    codec headers (AVI/BITMAPINFOHEADER int32 LE, MP4 sample entry uint16 BE, JPEG SOF uint16 BE h, w) patched."""
+    patterns = [(struct.pack("<ii", 32, 24), "<ii", False), (struct.pack(">HH", 32, 24), ">HH", False),
+                (struct.pack(">HH", 24, 32), ">HH", True)]
+    hits = [(i, fmt, swap) for pat, fmt, swap in patterns for i in _find_all(data, pat)]
+    if not hits or rng.random() < 0.2:
+        # a count or size field somewhere in the first kilobyte (frame counts, chunk sizes, ...)
+        i = int(rng.integers(0, max(1, min(len(data), 1024) // 4))) * 4
+        value = int(rng.choice([0, 1, 2**16, 2**24, 2**31 - 1, 2**32 - 1]))
+        return data[:i] + struct.pack("<I", value) + data[i + 4:], f"video_u32@{i}={value}"
+    i, fmt, swap = hits[int(rng.integers(0, len(hits)))]
+    big = 65535 if fmt == ">HH" else 2**31 - 1
+    w, h = (int(v) for v in rng.choice([[big, big], [big, 24], [32, big], [0, 24], [32, 0], [33, 24], [30000, 30000],
+                                        [16384, 16384]]))
+    if fmt == "<ii" and rng.random() < 0.3:
+        w, h = -w, -h
+    field = struct.pack(fmt, *((h, w) if swap else (w, h)))
+    return data[:i] + field + data[i + len(field):], f"video_size@{i}={w}x{h}"
+
+
+def _find_all(data: bytes, pattern: bytes) -> list[int]:
+    out, i = [], data.find(pattern)
+    while i >= 0 and len(out) < 64:
+        out.append(i)
+        i = data.find(pattern, i + 1)
+    return out
+
+
 SCENE_KEYS = ("duration_s", "frame_rate_hz", "min_step_s", "min_rate_hz", "noise_rate_hz", "width", "height",
               "lambda_", "refractory_us", "speed_px_s", "jitter_us", "count", "period_px", "radius_px")
 DATASET_KEYS = ("count", "seed", "duration_s", "frame_rate_hz", "speed_px_s", "noise_rate_hz", "sensor",
@@ -409,7 +556,7 @@ DATASET_KEYS = ("count", "seed", "duration_s", "frame_rate_hz", "speed_px_s", "n
 
 def crafted_scene(seed_text: bytes, rng, keys=SCENE_KEYS) -> tuple[bytes, str]:
     """Scene (or dataset spec) TOML with extreme values for keys that set work or memory."""
-    values = ("1e300", "1e-300", str(2**63), str(10**400), "0", "-1", "nan", "inf", "1e6", "9e12", "32767",
+    values = ("1e300", "1e-300", str(2**63), str(10**400), "0", "-1", "nan", "inf", "1e6", "9e12", "9e9", "9.3e9", "32767",
               "100000", "1e-9", '"30000x30000"', "{ uniform = [0, 1e300] }", "{ choice = [] }",
               "{ log_uniform = [-1, 5] }", "{ integers = [5, 1] }", '"x"', "[1, 2]")
     key = keys[int(rng.integers(0, len(keys)))]
@@ -672,6 +819,59 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
         else:
             data, what = mu.mutate(base, rng, mu.BYTE_MUTATORS, 2)
         return Case(case_id, target, what, lambda d: _write(d, "mesh." + fmt, data), root)
+    if target == "frames":
+        folders = seeds.frames_folders()
+        k = int(rng.integers(0, len(folders)))
+        base = dict(folders[k])
+        names = sorted(base)
+        name = names[int(rng.integers(0, len(names)))]
+        n_frames = sum(1 for rel in base if rel.startswith("images/frame_"))
+        expect = None
+        if name.endswith((".png", ".jpg")):
+            if crafted:
+                base[name], what = crafted_png(rng, 32, 24) if name.endswith(".png") else crafted_jpeg(rng)
+            else:
+                base[name], what = mu.mutate(base[name], rng, mu.BYTE_MUTATORS, 2)
+                # PNG has checksums and a length: a damaged one is refused or decodes to the same pixels;
+                # JPEG has neither, only its end marker: a cut or zeroed tail is refused
+                if name.endswith(".png") or what.split("+")[-1].startswith(("truncate", "zero_tail")) \
+                        and what.count("+") == 0:
+                    expect = seeds.frames_digest(k)
+        elif crafted and rng.random() < 0.3:
+            what = "remove"
+            del base[name]
+        elif crafted and name.endswith("timestamps.txt"):
+            base[name], what = crafted_timestamps(n_frames, rng)
+        else:
+            base[name], what = mu.mutate(base[name], rng, mu.TEXT_MUTATORS)
+
+        def build(d: Path, files=base) -> Path:
+            for rel, content in files.items():
+                (d / rel).parent.mkdir(parents=True, exist_ok=True)
+                (d / rel).write_bytes(content)
+            (d / "images").mkdir(exist_ok=True)
+            return d / "images"
+
+        return Case(case_id, target, f"{name}:{what}", build, root, {"expect_digest": expect} if expect else {})
+    if target == "video":
+        videos = seeds.videos()
+        name, base = videos[int(rng.integers(0, len(videos)))]
+        times = None
+        if rng.random() < 0.25:
+            times, what = crafted_timestamps(5, rng)
+        elif crafted:
+            data, what = crafted_video(base, rng)
+        else:
+            data, what = mu.mutate(base, rng, mu.BYTE_MUTATORS, 2)
+        data = base if times is not None else data
+
+        def build(d: Path) -> Path:
+            if times is not None:
+                _write(d, "timestamps.txt", times)
+            return _write(d, name, data)
+
+        return Case(case_id, target, f"{name}:{what}", build, root,
+                    {"also_named": ["timestamps.txt"]} if times is not None else {})
     if target == "dataset_spec":
         texts = seeds.dataset_specs()
         text = texts[int(rng.integers(0, len(texts)))]

@@ -105,7 +105,10 @@ def _run_case(case: dict) -> dict:
         return {"outcome": "memory", "detail": f"MemoryError at {_where(sys.exc_info()[2])}"}
     except errors as err:
         message = str(err)
-        if os.path.basename(path) in message or path in message:
+        # the input, or another file of the case that the message blames (a video's timestamps file)
+        names = [path, os.path.basename(path)] + [os.path.join(os.path.dirname(path), n)
+                                                  for n in case.get("also_named", ())]
+        if any(name in message for name in names):
             return {"outcome": "error", "detail": message[:300]}
         return {"outcome": "unnamed", "detail": f"{type(err).__name__}: {message[:300]}"}
     except BaseException as err:  # noqa: BLE001 - a pyo3 PanicException is a BaseException

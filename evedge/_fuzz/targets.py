@@ -165,3 +165,72 @@ TARGETS = {
 
 #: Targets outside the campaign: the harness's own checks.
 SELF_TARGETS = {"selftest": Target("evedge._fuzz.targets:selftest", "builtins:ValueError")}
+
+
+# ---------------------------------------------------------------- frames and video inputs of `evedge simulate`
+
+
+@dataclass(frozen=True)
+class FramesRun:
+    """What the frames/video targets give: the simulated recording and a digest of every decoded frame."""
+
+    recording: object
+    frames_digest: str
+
+
+def _frames_run(source) -> FramesRun:
+    """Simulate ``source`` as ``evedge simulate`` does (the frames are decoded lazily, mid-run), then hash them."""
+    rec = _resolve("evedge.sim.frames:simulate_frames")(source, progress=False)
+    h = hashlib.sha256()
+    for k in range(len(source)):
+        h.update(np.ascontiguousarray(source.frame(k)).tobytes())
+    source.close()
+    h.update(np.ascontiguousarray(source.times_s).tobytes())
+    return FramesRun(rec, h.hexdigest())
+
+
+def frames_folder(path: str) -> FramesRun:
+    """``evedge simulate --frames DIR``: :func:`~evedge.sim.frames.open_frames_folder` and a run."""
+    return _frames_run(_resolve("evedge.sim.frames:open_frames_folder")(path))
+
+
+def video_file(path: str) -> FramesRun:
+    """``evedge simulate --video FILE [--timestamps timestamps.txt]`` (when the case holds a timestamps file)."""
+    from pathlib import Path
+
+    ts = Path(path).with_name("timestamps.txt")
+    return _frames_run(_resolve("evedge.sim.frames:open_video")(path, timestamps=ts if ts.is_file() else None))
+
+
+def check_frames_run(run: FramesRun, case: dict) -> str | None:
+    """Events valid for the sensor, truth in its documented domain, and an intact frame when it must be."""
+    from evedge.events import validate_events
+
+    rec = run.recording
+    try:
+        validate_events(rec.events, rec.sensor_size)
+    except ValueError as err:
+        return f"events invalid: {err}"
+    tr = rec.truth
+    if tr is None or tr.shape != rec.events.shape:
+        return "truth missing or not one row per event"
+    # frames carry no motion field: flow, normal and lifetime are NaN on every row; the rest is finite
+    for name in ("vx_px_s", "vy_px_s", "nx", "ny", "lifetime_us"):
+        if not np.all(np.isnan(tr[name])):
+            return f"truth {name} not NaN"
+    if tr["is_signal"].dtype != np.bool_:
+        return "truth is_signal not boolean"
+    # t_ns is the event's instant in ns; t (us) is it rounded (events within one us are in pixel order), both
+    # from the same float64 seconds: up to a few of its ulps apart late in a long run
+    tol = 500 + 2e9 * np.spacing(np.abs(tr["t_ns"]) / 1e9)
+    if np.any(np.abs(tr["t_ns"] - rec.events["t"].astype(np.int64) * 1000) > tol):
+        return "truth t_ns is not the events' times"
+    expect = case.get("expect_digest")
+    if expect and run.frames_digest != expect:
+        return "a damaged image was read as a different frame"
+    return None
+
+
+_FRAMES_ERROR = "evedge.sim.frames:FramesError"
+TARGETS["frames"] = Target("evedge._fuzz.targets:frames_folder", _FRAMES_ERROR, (), check_frames_run)
+TARGETS["video"] = Target("evedge._fuzz.targets:video_file", _FRAMES_ERROR, (), check_frames_run)

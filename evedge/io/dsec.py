@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..events import validate_events
-from ._atomic import atomic_path, check_output_file
+from ._atomic import check_output_file, write_hdf5_atomic
 
 _CHUNK = 1 << 18
 
@@ -71,7 +71,6 @@ def write_dsec_events(path: str | os.PathLike, events: np.ndarray) -> Path:
     >>> ms_to_idx(ev["t"]).tolist()
     [0, 0, 1, 2]
     """
-    import h5py
 
     events = validate_events(events, name="write_dsec_events: events")
     t = events["t"].astype(np.int64)
@@ -84,16 +83,17 @@ def write_dsec_events(path: str | os.PathLike, events: np.ndarray) -> Path:
                          f"{np.iinfo(np.uint32).max} us (~71 min)")
     path = Path(path)
     check_output_file(path, "write_dsec_events")
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            g = f.create_group("events", track_order=True)
-            opts = dict(track_times=False)
-            if t.size:
-                opts.update(chunks=(min(t.size, _CHUNK),), compression="gzip", compression_opts=4, shuffle=True)
-            for name, col in (("p", events["p"].astype(np.uint8)), ("t", rel.astype(np.uint32)),
-                              ("x", events["x"].astype(np.uint16)), ("y", events["y"].astype(np.uint16))):
-                # flushed at once: the file layout must not depend on when the dataset object is freed
-                g.create_dataset(name, data=col, **opts).flush()
-            f.create_dataset("ms_to_idx", data=ms_to_idx(rel), track_times=False)
-            f.create_dataset("t_offset", data=np.int64(t_offset), track_times=False)
-    return path
+    def fill(f):
+        g = f.create_group("events", track_order=True)
+        opts = dict(track_times=False)
+        if t.size:
+            opts.update(chunks=(min(t.size, _CHUNK),), compression="gzip", compression_opts=4, shuffle=True)
+        for name, col in (("p", events["p"].astype(np.uint8)), ("t", rel.astype(np.uint32)),
+                          ("x", events["x"].astype(np.uint16)), ("y", events["y"].astype(np.uint16))):
+            # flushed at once: the file layout must not depend on when the dataset object is freed
+            g.create_dataset(name, data=col, **opts).flush()
+        f.create_dataset("ms_to_idx", data=ms_to_idx(rel), track_times=False)
+        f.create_dataset("t_offset", data=np.int64(t_offset), track_times=False)
+
+    # built in memory, then written with plain writes: HDF5 can crash the process on a full disk
+    return write_hdf5_atomic(path, fill)

@@ -431,7 +431,8 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
         ``folder`` is an existing file.
     FileExistsError
         ``folder/images`` holds files other than ``frame_XXXXXXXX.png``
-        (not a folder this writer made; it is not replaced).
+        (not a folder this writer made; it is not replaced), or
+        ``events.txt``, ``images.txt`` or ``images`` is a symbolic link.
 
     Notes
     -----
@@ -460,6 +461,10 @@ def write_ecd(folder: str | os.PathLike, recording: Recording) -> Path:
         raise ValueError("write_ecd: the text format needs frame timestamps >= 0")
     images = _frames_as_uint8(frames) if frames is not None else None
     old_images = folder / "images"
+    for name in ("events.txt", "images.txt", "images"):
+        if (folder / name).is_symlink():  # it would be written, or replaced, through the link
+            raise FileExistsError(f"write_ecd: {folder / name} is a symbolic link; it is not written through: "
+                                  "choose another folder or remove it")
     if old_images.exists():
         foreign = [p.name for p in old_images.iterdir() if not _FRAME_NAME.fullmatch(p.name)] \
             if old_images.is_dir() else [old_images.name]

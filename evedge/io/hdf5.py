@@ -517,6 +517,19 @@ def _check_truth(path: Path, name: str, col: np.ndarray) -> None:
                                  f"{float(col[bad[0]])}, expected > 0 (or NaN/inf)")
 
 
+def _check_truth_times(path: Path, t_us: np.ndarray, t_ns: np.ndarray) -> None:
+    """``truth/t_ns`` is each event's instant in ns: integers within 500 ns of its ``t`` (us, rounded)."""
+    if t_ns.dtype.kind not in "iu" or t_ns.ndim != 1:
+        raise EventFileError(f"{path}: dataset 'truth/t_ns' has dtype {t_ns.dtype}, expected int64 nanoseconds")
+    # both come from the same float64 seconds: a few of its ulps apart late in a long run
+    tol = 500 + 2e9 * np.spacing(np.abs(t_ns.astype(np.float64)) / 1e9)
+    bad = np.flatnonzero(np.abs(t_ns.astype(np.float64) - t_us.astype(np.float64) * 1000) > tol)
+    if bad.size:
+        i = int(bad[0])
+        raise EventFileError(f"{path}: {locate_index(i)}: 'truth/t_ns' = {int(t_ns[i])} ns is not the event's "
+                             f"time t = {int(t_us[i])} us")
+
+
 def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None, sort: bool = False) -> Recording:
     """Read an evedge HDF5 file written by :func:`write_recording`, verifying it.
 
@@ -617,6 +630,8 @@ def read_hdf5(path: str | os.PathLike, *, sensor_size: SensorSize | None = None,
             truth = np.empty(n, dtype=[(k, c.dtype, c.shape[1:]) for k, c in fields])
             for name, col in fields:
                 truth[name] = col
+            if "t_ns" in truth.dtype.names:
+                _check_truth_times(path, t, truth["t_ns"])
         frames = edges = None
         maps = {}
         for name, pair in stacks.items():

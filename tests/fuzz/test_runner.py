@@ -37,3 +37,26 @@ def test_limits_are_checked():
         Limits(1000, 1.0)
     with pytest.raises(ValueError, match="time_s"):
         Limits(2**30, 0)
+
+
+def test_the_frames_check_sees_a_different_frame_and_truth_out_of_domain(tmp_path):
+    """The frames/video targets' check can fail: a damaged PNG decoded to other pixels, flow that is not NaN."""
+    import dataclasses
+
+    from evedge._fuzz.corpus import Seeds
+    from evedge._fuzz.targets import check_frames_run, frames_folder
+
+    seeds = Seeds(tmp_path / "seeds", realdata=None)
+    files = seeds.frames_folders()[0]
+    for rel, content in files.items():
+        (tmp_path / "f" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "f" / rel).write_bytes(content)
+    run = frames_folder(str(tmp_path / "f" / "images"))
+    assert run.frames_digest == seeds.frames_digest(0)
+    assert check_frames_run(run, {"expect_digest": seeds.frames_digest(0)}) is None
+    assert check_frames_run(run, {"expect_digest": seeds.frames_digest(3)}) == \
+        "a damaged image was read as a different frame"
+    truth = run.recording.truth.copy()
+    truth["vx_px_s"][0] = 1.0
+    bad = dataclasses.replace(run, recording=dataclasses.replace(run.recording, truth=truth))
+    assert check_frames_run(bad, {}) == "truth vx_px_s not NaN"

@@ -320,3 +320,24 @@ def test_frame_paths_stay_in_the_folder(tmp_path, line, message):
     (tmp_path / "images.txt").write_bytes(b"\n".join(lines))
     with pytest.raises(EventFileError, match=message):
         read_ecd(tmp_path)
+
+
+@pytest.mark.parametrize("name", ["images", "events.txt", "images.txt"])
+def test_write_ecd_never_writes_through_a_link(tmp_path, name):
+    folder = write_ecd(tmp_path / "seq", _recording())
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "frame_00000000.png").write_bytes(b"precious")  # a frame-named file write_ecd would replace
+    target = victim if name == "images" else victim / "frame_00000000.png"
+    p = folder / name
+    if p.is_dir():
+        for q in p.iterdir():
+            q.unlink()
+        p.rmdir()
+    else:
+        p.unlink()
+    p.symlink_to(target)
+    with pytest.raises(FileExistsError, match=f"seq/{name} is a symbolic link; it is not written through"):
+        write_ecd(folder, _recording())
+    assert sorted(victim.iterdir()) == [victim / "frame_00000000.png"]
+    assert (victim / "frame_00000000.png").read_bytes() == b"precious"

@@ -296,3 +296,20 @@ def test_a_half_written_temp_file_is_an_error(tmp_path, small_recording):
         tmp.write_bytes(data[:cut])
         with pytest.raises(EventFileError, match=rf"\.rec\.h5\.{cut}\.tmp"):
             read_events(tmp, format="hdf5")
+
+
+def test_truth_times_must_be_the_events_times(tmp_path, small_recording):
+    rec = small_recording()
+    rec.truth = np.empty(rec.events.size, dtype=[("is_signal", "?"), ("t_ns", "i8")])
+    rec.truth["is_signal"] = True
+    rec.truth["t_ns"] = rec.events["t"].astype(np.int64) * 1000 + 499  # within the rounding of t (us)
+    path = write_recording(tmp_path / "rec.h5", rec)
+    assert np.array_equal(read_hdf5(path).truth["t_ns"], rec.truth["t_ns"])
+    shifted = rec.truth["t_ns"].copy()
+    shifted[7] += 2000
+    _tamper(path, _replace("truth/t_ns", shifted))  # resealed: only the domain check can see it
+    with pytest.raises(EventFileError, match=r"event index 7: 'truth/t_ns' = \d+ ns is not the event's time"):
+        read_hdf5(path)
+    _tamper(path, _replace("truth/t_ns", rec.truth["t_ns"].astype(np.float64)))
+    with pytest.raises(EventFileError, match=r"'truth/t_ns' has dtype float64, expected int64 nanoseconds"):
+        read_hdf5(path)

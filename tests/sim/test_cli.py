@@ -143,3 +143,27 @@ def test_simulate_video_and_frames(tmp_path):
     assert res.exit_code != 0 and "exactly one of SCENE" in res.output
     res = CliRunner().invoke(simulate, [str(SCENES / "stripes.toml"), "--rate", "3", "-o", str(out)])
     assert res.exit_code != 0 and "--rate applies to --video/--frames only" in res.output
+
+
+def test_simulate_video_with_the_gen4_preset(tmp_path):
+    """``--video --sensor gen4``: frames resized to 1280x720 and the preset's pixel settings."""
+    import cv2
+
+    from evedge.sensors import sensor_model
+
+    x = np.arange(64)
+    video = tmp_path / "v.avi"
+    wr = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"FFV1"), 100.0, (64, 36), isColor=False)
+    for k in range(3):
+        wr.write(np.clip(40 + 180 * ((x[None, :] - k) % 32 < 16), 0, 255).astype(np.uint8).repeat(36, 0))
+    wr.release()
+    out = tmp_path / "v.h5"
+    res = CliRunner().invoke(simulate, ["--video", str(video), "-o", str(out), "--sensor", "gen4", "--quiet"])
+    assert res.exit_code == 0, res.output
+    assert "1280x720" in res.output
+    rec = read_events(out)
+    m = sensor_model("gen4")
+    conv = rec.metadata["converter"]
+    assert (rec.sensor_size.width, rec.sensor_size.height) == (1280, 720) and rec.events.shape[0] > 1000
+    assert (conv["contrast_pos"], conv["contrast_neg"], conv["refractory_us"]) == (m.contrast_pos, m.contrast_neg,
+                                                                                   m.refractory_us)

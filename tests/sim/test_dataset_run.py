@@ -77,6 +77,49 @@ def _files(folder: Path) -> dict[str, bytes]:
     return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted((folder / "sequences").glob("*.h5"))}
 
 
+def _layout(path: Path) -> dict[str, tuple]:
+    """Where each dataset's data lies in an HDF5 file: (offset or chunk offsets, stored bytes)."""
+    out = {}
+
+    def visit(name, obj):
+        if isinstance(obj, h5py.Dataset):
+            if obj.chunks is None:
+                out[name] = (obj.id.get_offset(), obj.id.get_storage_size())
+            else:
+                out[name] = (tuple(obj.id.get_chunk_info(k).byte_offset for k in range(obj.id.get_num_chunks())),
+                             obj.id.get_storage_size())
+
+    with h5py.File(path, "r") as f:
+        f.visititems(visit)
+    return out
+
+
+def _assert_same_files(folder: Path, reference: Path, *, only_reference: bool = False) -> None:
+    """The sequence files of ``folder`` are byte for byte the reference's; else say how they differ.
+
+    The message tells a different recording (content) from the same recording laid out
+    differently in the file (dataset offsets), naming the first differing byte.
+    """
+    from evedge._fuzz.targets import recording_digest
+
+    got, want = _files(folder), _files(reference)
+    if only_reference:
+        got = {k: v for k, v in got.items() if k in want}
+    assert sorted(got) == sorted(want), f"files {sorted(got)} vs the reference's {sorted(want)}"
+    problems = []
+    for name in sorted(want):
+        a, b = got[name], want[name]
+        if a == b:
+            continue
+        first = next((i for i, (x, y) in enumerate(zip(a, b)) if x != y), min(len(a), len(b)))
+        same_content = recording_digest(read_hdf5(folder / name)) == recording_digest(read_hdf5(reference / name))
+        moved = {k: (v, _layout(reference / name).get(k)) for k, v in _layout(folder / name).items()
+                 if v != _layout(reference / name).get(k)}
+        problems.append(f"{name}: {len(a)} vs {len(b)} bytes, first difference at byte {first}; recording "
+                        f"{'the same (layout differs: ' + repr(moved)[:400] + ')' if same_content else 'DIFFERENT'}")
+    assert not problems, "HDF5 bytes differ from the serial reference:\n" + "\n".join(problems)
+
+
 def _stable(rows: dict) -> list[dict]:
     return [{k: v for k, v in rows[i].items() if k not in RUN_FIELDS} for i in sorted(rows)]
 
@@ -86,7 +129,7 @@ def test_two_workers_make_the_serial_bytes_and_resume_repairs(client, reference,
     out = tmp_path / "ds"
     run = generate_dataset(spec, out, client=client, progress=False)
     assert (run.made, run.skipped, run.failed) == (4, 0, 0)
-    assert _files(out) == _files(serial_dir)
+    _assert_same_files(out, serial_dir)
     rows = read_manifest(out)
     assert _stable(rows) == [{k: v for k, v in r.items() if k not in RUN_FIELDS} for r in serial_rows]
     # the two workers both took part (4 tasks, 2 single-threaded workers)
@@ -110,7 +153,7 @@ def test_two_workers_make_the_serial_bytes_and_resume_repairs(client, reference,
     victims[2].write_bytes(bytes(data))
     run = generate_dataset(spec, out, client=client, progress=False)
     assert (run.made, run.skipped, run.failed) == (2, 2, 0)
-    assert _files(out) == _files(serial_dir)
+    _assert_same_files(out, serial_dir)
     assert _stable(read_manifest(out)) == _stable(rows)
     # nothing left to do: no task at all
     run = generate_dataset(spec, out, client=client, progress=False)
@@ -160,11 +203,11 @@ def test_a_worker_failure_retries_the_sequence(client, reference, tmp_path):
     out = tmp_path / "ds"
     run = generate_dataset(spec, out, client=client, progress=False, task_fn=_flaky)
     assert (run.made, run.failed) == (4, 0) and (out / ".attempt-1").exists()
-    assert _files(out) == _files(serial_dir)
+    _assert_same_files(out, serial_dir)
     out2 = tmp_path / "ds2"
     run = generate_dataset(spec, out2, client=client, progress=False, task_fn=_killer)
     assert (run.made, run.failed) == (4, 0) and (out2 / ".killed-2").exists()
-    assert _files(out2) == _files(serial_dir)
+    _assert_same_files(out2, serial_dir)
 
 
 def test_one_bad_sequence_is_reported_and_does_not_stop_the_others(client, reference, tmp_path):
@@ -179,7 +222,7 @@ def test_one_bad_sequence_is_reported_and_does_not_stop_the_others(client, refer
     # a rerun with a working task makes only the failed one, and the dataset is whole
     run = generate_dataset(spec, out, client=client, progress=False)
     assert (run.made, run.skipped, run.failed) == (1, 3, 0)
-    assert _files(out) == _files(serial_dir)
+    _assert_same_files(out, serial_dir)
 
 
 def test_an_invalid_sequence_is_a_failed_row_naming_the_key(client, tmp_path):
@@ -205,40 +248,58 @@ def _cli(spec: Path, out: Path, *extra, **kw):
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, **kw)
 
 
-def test_command_killed_midway_then_rerun_gives_the_same_dataset(reference, tmp_path):
-    spec, serial_dir, _ = reference
+def _spec_file(path: Path, count: int) -> Path:
+    """TINY with ``count`` sequences as a TOML file (sequence i does not depend on the count)."""
     data = json.loads(json.dumps(TINY))
-    # 10 sequences, so the kill lands midway however fast they are; sequence i does not depend on the
-    # count, so the first 4 are the reference's
-    count = 10
     lines = ["[dataset]", 'name = "tiny"', "seed = 11", f"count = {count}", "[parameters]"]
     for k, v in data["parameters"].items():
         lines.append(f"{k} = " + (json.dumps(v) if not isinstance(v, dict) else
                                    "{ " + ", ".join(f"{a} = {json.dumps(b)}" for a, b in v.items()) + " }"))
-    spec_file = tmp_path / "tiny.toml"
-    spec_file.write_text("\n".join(lines) + "\n")
-    out = tmp_path / "ds"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _kill_after_first_sequence(spec_file: Path, out: Path) -> int:
+    """Run the command, freeze it (SIGSTOP) as soon as a sequence file appears, kill it; files made."""
     proc = _cli(spec_file, out, "--workers", "1")
     try:
         deadline = time.monotonic() + 120
         while not list((out / "sequences").glob("seq_*.h5")) and time.monotonic() < deadline:
-            assert proc.poll() is None, proc.communicate()
-            time.sleep(0.05)
+            if proc.poll() is not None:
+                break  # finished (or failed) before a poll saw a file: the caller checks
+            time.sleep(0.02)
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGSTOP)  # the client and its cluster's processes, at once: no more writes
     finally:
-        os.killpg(proc.pid, signal.SIGKILL)  # the client and its cluster's processes, at once
-        proc.communicate()
-    made_before = len(list((out / "sequences").glob("seq_*.h5")))
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        _, stderr = proc.communicate()
+    assert proc.returncode in (0, -signal.SIGKILL), stderr.decode()
+    return len(list((out / "sequences").glob("seq_*.h5")))
+
+
+def test_command_killed_midway_then_rerun_gives_the_same_dataset(reference, tmp_path):
+    spec, serial_dir, _ = reference
+    # the first sequences are the reference's; a machine so loaded that the whole run ends before a poll
+    # sees its first file gets a bigger dataset (at most twice): the kill must land midway
+    for count in (10, 40, 160):
+        out = tmp_path / f"ds{count}"
+        spec_file = _spec_file(tmp_path / f"tiny{count}.toml", count)
+        made_before = _kill_after_first_sequence(spec_file, out)
+        if made_before < count:
+            break
     assert 1 <= made_before < count, "the run was not killed midway"
     # as a kill in the middle of writes would leave them
     (out / "sequences" / ".seq_00003.h5.abcd.tmp").write_bytes(b"half")
     (out / ".manifest.jsonl.abcd.tmp").write_text("{")
     proc = _cli(spec_file, out, "--workers", "1")
-    stdout, stderr = proc.communicate(timeout=180)
+    stdout, stderr = proc.communicate(timeout=600)
     assert proc.returncode == 0, stderr.decode()
     assert f"{count}/{count} sequences ok" in stdout.decode()
-    files = _files(out)
-    assert len(files) == count
-    assert {k: v for k, v in files.items() if k in _files(serial_dir)} == _files(serial_dir)
+    assert len(_files(out)) == count
+    _assert_same_files(out, serial_dir, only_reference=True)
     assert not list(out.glob("**/.*.tmp"))
 
 
@@ -269,7 +330,7 @@ def test_dsec_layout_reads_back_the_way_dsec_loaders_do(client, reference, tmp_p
     run = generate_dataset(spec, out, layouts=("evedge", "dsec"), client=client, progress=False)
     assert (run.made, run.skipped, run.failed) == (4, 0, 0)
     assert {p.name: p.stat().st_ino for p in (out / "sequences").glob("*.h5")} == inodes
-    assert _files(out) == _files(serial_dir)
+    _assert_same_files(out, serial_dir)
     for i in range(spec.count):
         name = spec.sequence_name(i)
         ours = read_hdf5(out / "sequences" / f"{name}.h5").events
@@ -330,3 +391,20 @@ def test_run_tasks_bounds_the_tasks_in_flight(client):
     assert all(r == i and e is None for i, r, e in got)
     with pytest.raises(ValueError, match="max_in_flight must be an integer >= 1"):
         list(run_tasks(client, abs, [1], max_in_flight=0))
+
+
+def test_a_link_in_the_dataset_folder_is_refused_and_nothing_behind_it_is_touched(client, reference, tmp_path):
+    spec, _, _ = reference
+    out = tmp_path / "ds"
+    generate_dataset(parse_dataset(dict(TINY, dataset={"count": 1, "seed": 11, "name": "tiny"})), out,
+                     client=client, progress=False)
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / ".seq_00000.h5.1.tmp").write_bytes(b"not yours")  # what a stale-temp sweep would delete
+    for p in (out / "sequences").iterdir():
+        p.unlink()
+    (out / "sequences").rmdir()
+    (out / "sequences").symlink_to(victim, target_is_directory=True)  # resuming would write through it
+    with pytest.raises(DatasetError, match=r"sequences is a symbolic link: .* is not written into"):
+        generate_dataset(spec, out, client=client, progress=False)
+    assert sorted(os.listdir(victim)) == [".seq_00000.h5.1.tmp"]

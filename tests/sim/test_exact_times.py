@@ -176,21 +176,17 @@ def test_geometric_sampling_same_events_on_stripes_with_fewer_samples(stripes_di
         simulate(parse_scene(d, "g.toml"), progress=False, frame_rate_hz=0)
 
 
-def test_geometric_sampling_splits_a_step_hiding_an_excursion():
-    """A thin dark bar crossing a pixel within one 0.5 px step: the midpoint check sees it."""
-    from evedge.sim import ConverterParams
-    from evedge.sim.motion import PlanarMotion
-    from evedge.sim.planar import Polygon, ShapesRenderer
-
-    bar = Polygon(np.array([[-3.0, -20.0], [-2.7, -20.0], [-2.7, 20.0], [-3.0, 20.0]]), 0.1)  # 0.3 px wide
-    r = ShapesRenderer(8, 3, [bar], PlanarMotion(velocity_px_s=(100.0, 0.0)), background=0.8)
-    dense = ConverterParams(contrast_pos=0.1, contrast_neg=0.1, lambda_=0.1)
-    geo = ConverterParams(contrast_pos=0.1, contrast_neg=0.1, sampling="geometric", max_step_px=2.0)
-    want, _ = EventConverter(r, dense, seed=0, duration_s=0.1).process(0.1)
-    conv = EventConverter(r, geo, seed=0, duration_s=0.1)
-    got, _ = conv.process(0.1)
-    assert want.shape[0] > 50 and conv.n_rejected > 0
-    assert got.tobytes() == want.tobytes()
+def test_geometric_sampling_splits_a_stripes_step_hiding_an_excursion(stripes_dict):
+    """Stripes 0.6 px wide under 2 px steps (beyond their monotone step): the midpoint check halves steps."""
+    d = stripes_dict(width=16, height=2, duration_s=0.05, velocity_px_s=[100.0, 0.0], period_px=3.0, duty=0.2)
+    d["events"].update(contrast_pos=0.1, contrast_neg=0.1, sampling="geometric", max_step_px=2.0)
+    geo = simulate(parse_scene(d, "g.toml"), progress=False, frame_rate_hz=0)
+    d["events"].update(sampling="verified", max_step_px=0.02, **{"lambda": 0.1})
+    dense = simulate(parse_scene(d, "v.toml"), progress=False, frame_rate_hz=0)
+    assert geo.metadata["n_rejected_steps"] > 0 and dense.events.shape[0] > 100
+    # the midpoint check (the fallback for renderers without nonmonotone_pixels) still misses excursions
+    # shorter than half a step: most events, not all (the shapes' sub-sampling is complete: test_completeness)
+    assert 0.95 * dense.events.shape[0] <= geo.events.shape[0] <= dense.events.shape[0]
 
 
 def test_crossing_levels_kernel_matches_reference(ref):

@@ -49,14 +49,17 @@ def esim_reference(frames, times_s, c_pos, c_neg, refractory_s=0.0, eps=EPS):
     return out
 
 
-def _rendered_frames(n=60, rate_hz=1000.0):
+def _rendered_frames(n=60, rate_hz=1000.0, size=(26, 14)):
     d = {
         "scene": {"kind": "shapes", "duration_s": 1.0, "background": 0.8},
-        "sensor": {"width": 26, "height": 14},
+        "sensor": {"width": size[0], "height": size[1]},
         "motion": {"velocity_px_s": [180.0, -60.0]},
         "shapes": [{"kind": "star", "center_px": [9, 7], "radius_px": 6, "intensity": 0.15},
                    {"kind": "circle", "center_px": [19, 8], "radius_px": 3.5, "intensity": 0.35}],
     }
+    if size[0] > 60:  # and a shape far down the image (in the second tile of pixels of _frames_batch)
+        d["shapes"].append({"kind": "circle", "center_px": [size[0] - 12, size[1] - 9], "radius_px": 6,
+                            "intensity": 0.3})
     scene = parse_scene(d, "f.toml")
     t = np.arange(n) / rate_hz
     return np.stack([render_frame(scene, float(tk)) for tk in t]), t
@@ -253,3 +256,219 @@ def test_frames_api_refuses_bad_arguments(tmp_path):
         open_frames_folder(tmp_path, rate_hz=-1.0)
     with pytest.raises(FramesError, match="give timestamps or rate_hz, not both"):
         open_frames_folder(tmp_path, rate_hz=10.0, timestamps=np.array([0.0, 1.0]))
+
+
+# --------------------------------------------------------------------------- damaged files, bounds (issue 14)
+def _png(width, height, rows):
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    raw = zlib.compress(b"".join(b"\0" + bytes(width) for _ in range(rows)))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
+
+
+def _folder(tmp_path, n=3, ext=".png"):
+    import cv2
+
+    folder = tmp_path / "frames"
+    folder.mkdir(parents=True)
+    for k in range(n):
+        cv2.imwrite(str(folder / f"{k}{ext}"), np.full((4, 5), 40 * k + 20, np.uint8))
+    (folder / "timestamps.txt").write_text("".join(f"{k / 100}\n" for k in range(n)))
+    return folder
+
+
+def test_declared_frame_sizes_are_checked_before_decoding(tmp_path, monkeypatch):
+    import cv2
+
+    folder = _folder(tmp_path)
+    decoded = []
+    real = cv2.imdecode
+    monkeypatch.setattr(cv2, "imdecode", lambda *a: decoded.append(1) or real(*a))
+    # 2^30 pixels declared in 100 bytes: OpenCV would allocate 1 GiB, then raise its own assertion (no FramesError)
+    (folder / "0.png").write_bytes(_png(32768, 32768, 1))
+    with pytest.raises(FramesError, match=r"0.png: frame size 32768x32768 is outside 1..32767"):
+        open_frames_folder(folder)
+    (folder / "0.png").write_bytes(_png(30000, 30000, 1))  # inside the side bound: the memory check refuses it
+    from evedge import _resources
+    monkeypatch.setattr(_resources, "available_memory_bytes", lambda: 2**30)
+    with pytest.raises(FramesError, match=r"0.png: frames of 30000x30000 needs about .* GiB; this machine has 1 GiB"):
+        open_frames_folder(folder)
+    assert decoded == []
+    # a later frame that declares another size is refused before it is decoded
+    cv2.imwrite(str(folder / "0.png"), np.zeros((4, 5), np.uint8))
+    (folder / "2.png").write_bytes(_png(20000, 20000, 1))
+    src = open_frames_folder(folder)
+    with pytest.raises(FramesError, match=r"2.png: frame 2 is 20000x20000, expected 5x4 like the first frame"):
+        simulate_frames(src, progress=False)
+    assert len(decoded) == 3  # frame 0 when opened, frames 0 and 1 in the run: never frame 2
+
+
+def test_damaged_images_are_named_errors(tmp_path):
+    import cv2
+
+    folder = _folder(tmp_path, ext=".jpg")
+    img = (np.random.default_rng(0).random((4, 5)) * 255).astype(np.uint8)
+    cv2.imwrite(str(folder / "1.jpg"), img)
+    data = (folder / "1.jpg").read_bytes()
+    (folder / "1.jpg").write_bytes(data[:-100] + bytes(100))  # a zeroed tail: OpenCV alone decodes other pixels
+    assert not np.array_equal(cv2.imread(str(folder / "1.jpg"), cv2.IMREAD_GRAYSCALE), cv2.imdecode(
+        np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE))
+    with pytest.raises(FramesError, match=r"1.jpg: the JPEG ends before its end-of-image marker"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    (folder / "1.jpg").write_bytes(b"\xff\xd8 not a jpeg")
+    with pytest.raises(FramesError, match=r"1.jpg: not a readable image \(unknown or damaged header\)"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    png = _folder(tmp_path / "p")
+    (png / "1.png").write_bytes(_png(5, 4, 2))  # rows missing: libpng's error, as a named error
+    with pytest.raises(FramesError, match=r"1.png: OpenCV cannot read it as an image"):
+        simulate_frames(open_frames_folder(png), progress=False)
+    tif = _folder(tmp_path / "t", ext=".tiff")
+    bad = np.full((4, 5), 0.5, np.float32)
+    bad[1, 2] = np.nan
+    cv2.imwrite(str(tif / "2.tiff"), bad)
+    with pytest.raises(FramesError, match=r"2.tiff: float pixels must be finite and >= 0"):
+        simulate_frames(open_frames_folder(tif), progress=False)
+
+
+def test_frame_times_are_bounded_and_a_long_gap_is_not_many_chunks(tmp_path):
+    folder = _folder(tmp_path)
+    # 9.3e9 s: the truth's t_ns (int64 ns) would overflow; refused, naming the file
+    (folder / "timestamps.txt").write_text("0\n1\n9.3e9\n")
+    with pytest.raises(FramesError, match=r"timestamps.txt: frame times span 9300000000.0 s, more than 9e\+09 s"):
+        open_frames_folder(folder)
+    # 8e9 s between two frames: one chunk (the loop used to take 1.6e11 steps of chunk_s)
+    (folder / "timestamps.txt").write_text("0\n0.01\n8e9\n")
+    rec = simulate_frames(open_frames_folder(folder), progress=False, chunk_s=0.05)
+    ev, tr = rec.events, rec.truth
+    assert ev.shape[0] > 0 and ev["t"][-1] > 1e12  # events in the long interval
+    assert np.all(np.abs(tr["t_ns"] - ev["t"] * 1000) <= 500 + 2e9 * np.spacing(8e9))
+    # the chunking still does not change the output
+    again = simulate_frames(open_frames_folder(folder), progress=False, chunk_s=1e9)
+    assert again.events.tobytes() == ev.tobytes() and again.truth.tobytes() == tr.tobytes()
+
+
+def test_noise_over_long_frame_times_is_refused_before_work(tmp_path):
+    folder = _folder(tmp_path)
+    (folder / "timestamps.txt").write_text("0\n1\n8e9\n")
+    with pytest.raises(FramesError, match=r"frames: 5x4 for 8e\+09 s of frames \(about 1.6e\+12 noise events at "
+                                          r"noise_rate_hz=10\) needs about .* GiB"):
+        simulate_frames(open_frames_folder(folder), ConverterParams(noise_rate_hz=10.0), progress=False)
+
+
+def test_video_decoder_errors_are_named(tmp_path):
+    frames, _ = _rendered_frames(6)
+    _write_video(tmp_path / "v.avi", np.rint(frames * 255).astype(np.uint8), 250.0)
+    data = (tmp_path / "v.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[:300])
+    with pytest.raises(FramesError, match=r"cut.avi: (OpenCV cannot open it as a video|no decodable frame)"):
+        open_video(tmp_path / "cut.avi")
+
+
+def test_a_png_chunk_length_past_the_end_is_refused_before_opencv(tmp_path):
+    folder = _folder(tmp_path)
+    data = bytearray((folder / "1.png").read_bytes())
+    data[33] ^= 0xA7  # the first chunk after IHDR now claims ~2.8 GB: OpenCV spends seconds on it
+    (folder / "1.png").write_bytes(bytes(data))
+    with pytest.raises(FramesError, match=r"1.png: PNG chunk b'.{4}' at byte 33 claims \d+ bytes past the end"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+    data[33] ^= 0xA7
+    data[45] ^= 0x01  # a byte of the (IDAT) chunk's body: PIL reads the header only
+    (folder / "1.png").write_bytes(bytes(data))
+    with pytest.raises(FramesError, match=r"1.png: PNG chunk .* at byte 33 fails its CRC"):
+        simulate_frames(open_frames_folder(folder), progress=False)
+
+
+@pytest.mark.parametrize("case", ["plain", "pixel_model", "log_upsample", "log_upsample_odd", "flow_upsample",
+                                  "log_input", "log_input_upsample", "uint8", "resize"])
+def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
+    """The fused batch kernel (one call per batch of frames) against the converter's frame-by-frame path."""
+    # more events per batch than the first buffers hold (they grow)
+    frames, t = _rendered_frames(70, rate_hz=2000.0, size=(72, 48))
+    params = ConverterParams(contrast_pos=0.15, contrast_neg=0.17)
+    kw = {}
+    if case == "pixel_model":
+        params = ConverterParams(contrast_sigma=0.05, noise_rate_hz=40.0, refractory_us=150.0, jitter_us=3.0)
+    elif case == "log_upsample":
+        kw = dict(upsample=3, interpolation="log")
+    elif case == "log_upsample_odd":  # rows of the batch not 64-byte aligned (405 float64 per frame)
+        frames, t = _rendered_frames(70, rate_hz=2000.0, size=(27, 15))
+        frames = np.repeat(frames, 3, axis=0)[:70] * np.linspace(0.7, 1.0, 70)[:, None, None]
+        kw = dict(upsample=5, interpolation="log")
+    elif case == "flow_upsample":
+        kw = dict(upsample=2, interpolation="flow")
+    elif case == "log_input":
+        frames, kw = np.log(frames + EPS), dict(log_input=True)
+    elif case == "log_input_upsample":
+        frames, kw = np.log(frames + EPS), dict(log_input=True, upsample=2)
+    elif case == "uint8":
+        frames = np.rint(frames * 255).astype(np.uint8)
+    elif case == "resize":
+        kw = dict(resize=(80, 36))
+    runs = {}
+    for mode in ("batched", "per_frame"):
+        if mode == "per_frame":
+            monkeypatch.setattr(FramesRenderer, "samples", None)  # the converter then steps frame by frame
+        for chunk_s in (0.05, 0.0031):
+            runs[mode, chunk_s] = simulate_frames(frames_from_arrays(frames, t), params, seed=3, progress=False,
+                                                  chunk_s=chunk_s, **kw)
+    ref = runs["per_frame", 0.05]
+    assert ref.events.shape[0] > 1200  # one batch at chunk_s = 0.05: more than the first buffers (1024)
+    for key, rec in runs.items():
+        assert rec.events.tobytes() == ref.events.tobytes(), key
+        assert rec.truth.tobytes() == ref.truth.tobytes(), key
+        assert rec.metadata["n_samples"] == ref.metadata["n_samples"], key
+
+
+def test_batches_stop_at_the_chunk_and_the_batch_size():
+    """``samples`` follows next_sample_s: up to the first sample at or after ``until_s``, at most ``max_n``."""
+    frames, t = _rendered_frames(12, rate_hz=100.0)
+    r = FramesRenderer(frames_from_arrays(frames, t), upsample=3)
+    times, images = r.samples(0.0, 0.025, 100)
+    want, tk = [], 0.0
+    while tk < 0.025:
+        tk = r.next_sample_s(tk)
+        want.append(tk)
+    assert times.tolist() == want and images.shape == (len(want), 14, 26)
+    assert np.array_equal(images[-1], r.intensity(want[-1]))
+    times, _ = r.samples(0.0, 1.0, 4)
+    assert times.shape == (4,)
+    times, _ = r.samples(0.1, 1.0, 100)
+    assert times[-1] == t[-1] - t[0]
+
+
+def test_non_finite_frame_inside_a_batch_is_named():
+    frames, t = _rendered_frames(40)
+    frames[17, 3, 4] = np.inf
+    frames[17, 5, 6] = np.nan
+    frames[25, 0, 0] = np.nan
+    with pytest.raises(ValueError, match=r"clip: the sample at t = 0.017 s has 2 non-finite pixel values"):
+        simulate_frames(frames_from_arrays(frames, t, name="clip"), progress=False)
+
+
+def test_gen4_frames_memory_is_bounded():
+    """Frames resized to 1280x720 (``--sensor gen4``): the working memory is the per-pixel state and one batch.
+
+    Traced peak minus the output, for 6 and for 12 frames: the same (it does not grow
+    with the input) and under 200 MiB (per-pixel state, the pair of frames, the batch
+    of samples and the sort of the output at 0.92 Mpx).
+    """
+    import tracemalloc
+
+    frames, t = _rendered_frames(12, rate_hz=500.0)
+    simulate_frames(frames_from_arrays(frames[:3], t[:3]), resize=(1280, 720), progress=False)  # compile
+    extra = []
+    for n in (6, 12):
+        tracemalloc.start()
+        rec = simulate_frames(frames_from_arrays(frames[:n], t[:n]), resize=(1280, 720), progress=False,
+                              chunk_s=0.004)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert rec.sensor_size.width == 1280 and rec.events.shape[0] > 10_000
+        extra.append((peak - 2 * (rec.events.nbytes + rec.truth.nbytes)) / 2**20)
+    assert max(extra) < 200, extra
+    assert abs(extra[1] - extra[0]) < 25, extra

@@ -83,7 +83,7 @@ CASES = [
     (("sections",), [{"name": "a", "start_s": 0.05, "end_s": 0.01}], "sections[0].end_s", "must be > start_s"),
     (("sections",), [{"name": "a", "start_s": 0.0, "end_s": 5.0}], "sections[0].end_s", "must be <= scene.duration_s"),
     # beyond these the run never ends or times wrap around int64 microseconds
-    (("scene", "duration_s"), 1e300, "scene.duration_s", "must be <= 9000000000000.0"),
+    (("scene", "duration_s"), 1e300, "scene.duration_s", "must be <= 9000000000.0"),
     (("events",), {"noise_rate_hz": 1e300}, "events.noise_rate_hz", "must be <= 1000000.0"),
     (("events",), {"jitter_us": 1e300}, "events.jitter_us", "must be <= 1000000000000.0"),
     (("events",), {"noise_rate_hz": 10**400}, "events.noise_rate_hz", "must be finite, got an integer of 401 digits"),
@@ -159,7 +159,7 @@ def test_analytic_path_never_imports_pyrender(tmp_path):
 def test_simulate_and_converter_params_bound_what_the_scene_bounds():
     from evedge.sim import ConverterParams
 
-    with pytest.raises(ValueError, match=r"duration_s must be <= 9e\+12"):
+    with pytest.raises(ValueError, match=r"duration_s must be <= 9e\+09"):
         simulate(parse_scene(_base()), duration_s=1e100, progress=False)
     for name, value in (("lambda_", 2.0), ("noise_rate_hz", 1e300), ("jitter_us", 1e300)):
         with pytest.raises(ValueError, match=f"ConverterParams.{name} must be <= "):
@@ -218,17 +218,19 @@ def test_with_sensor_rescales_bands():
     assert s.params == load_scene(SCENES / "stripes.toml").params
 
 
-def test_gen4_memory_is_bounded():
-    """1280x720 stripes: the working memory is the per-pixel state, not the duration.
+@pytest.mark.parametrize("name", ["stripes", "shapes_translation"])
+def test_gen4_memory_is_bounded(name):
+    """1280x720 stripes and shapes: the working memory is the per-pixel state, not the duration.
 
     Peak traced allocation (numpy buffers included) minus the output stays under
     160 MiB (13 float64 arrays of 0.92 Mpx are 94 MiB), for 2 ms and for 4 ms.
+    The shapes take geometric steps with sub-sampled pixels (their scratch is per pixel too).
     """
     import tracemalloc
 
     from evedge.sim.scene import with_sensor
 
-    s = with_sensor(load_scene(SCENES / "stripes.toml"), "gen4")
+    s = with_sensor(load_scene(SCENES / f"{name}.toml"), "gen4")
     simulate(s, duration_s=0.0005, frame_rate_hz=0, progress=False)  # compile outside the trace
     extra = []
     for d in (0.002, 0.004):
@@ -237,7 +239,7 @@ def test_gen4_memory_is_bounded():
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
         out = rec.events.nbytes + rec.truth.nbytes
-        assert rec.events.shape[0] > 3_000
+        assert rec.events.shape[0] > (3_000 if name == "stripes" else 100)
         extra.append((peak - 2 * out) / 2**20)
     assert max(extra) < 160, extra
     assert abs(extra[1] - extra[0]) < 20, extra

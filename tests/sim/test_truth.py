@@ -161,3 +161,36 @@ def test_stripes_point_truth_kernel_matches_reference():
     want = np.stack(ref_stripes_point_truth(r, x, y, t))
     assert np.isnan(got[2]).sum() > 100  # rows 10-11 belong to no layer
     assert got.tobytes() == want.tobytes()
+
+
+def ref_shapes_motion_truth(r, x, y, t_s):
+    """The shapes' motion field and object points in numpy (PlanarMotion.state and flow_at: the kernel's reference)."""
+    m = r.motion
+    theta, w, sx, sy, v0x, v0y = m.state(t_s)
+    c, s = np.cos(theta), np.sin(theta)
+    cx, cy = m.center_px
+    rx, ry = x - cx - sx, y - cy - sy
+    fx, fy = m.flow_at(x, y, t_s)
+    return fx, fy, cx + c * rx + s * ry, cy - s * rx + c * ry
+
+
+@pytest.mark.parametrize("motion", [
+    PlanarMotion(amplitude_px=(22.0, 7.0), frequency_hz=0.25, chirp_hz_s=1.0, angle_rad=0.3),
+    PlanarMotion(center_px=(20.0, 15.0), angle_amplitude_rad=0.25, frequency_hz=0.5, chirp_hz_s=1.0,
+                 velocity_px_s=(5.0, -3.0), angular_velocity_rad_s=0.4),
+])
+def test_shapes_point_truth_kernel_matches_reference(motion):
+    from evedge.sim._exact import _shapes_truth_points
+
+    r = ShapesRenderer(40, 30, [Polygon(np.array([[10.0, 10.0], [25.0, 12.0], [18.0, 24.0]]), 0.2)], motion)
+    rng = np.random.default_rng(1)
+    x, y, t = rng.uniform(0, 40, 2000), rng.uniform(0, 30, 2000), rng.uniform(0, 2, 2000)
+    out = [np.empty(2000) for _ in range(6)]
+    _shapes_truth_points(x, y, t, r._motion_params(), *motion.center_px, r._translation_geometry() is None, *out)
+    qx, qy, vx, vy = out[:4]
+    want = ref_shapes_motion_truth(r, x, y, t)
+    for got, ref in zip((vx, vy, qx, qy), want):
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
+    vx2, vy2, nx, ny = r.point_truth(x, y, t)
+    np.testing.assert_array_equal(vx2, vx)
+    np.testing.assert_allclose(np.hypot(nx, ny), 1.0, atol=1e-12)
