@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import sys
 import time
 from dataclasses import dataclass
 
@@ -303,7 +304,6 @@ def run_grid(cell_tasks, *, workers: int | None = None, scheduler: str | None = 
     failures = []
     if workers == 0 and client is None and scheduler is None:
         from tqdm import tqdm
-        import sys
 
         for i, task in enumerate(tqdm(cell_tasks, desc="cells", unit="cell", disable=not progress, file=sys.stderr)):
             try:
