@@ -686,8 +686,8 @@ class IntraPixelLifetime:
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
-                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, False, per_pol, half,
-                          *args[3:], lt, vx, vy, valid, *self._scratch)
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half, *args[3:],
+                          lt, vx, vy, valid, *self._scratch)
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
