@@ -472,3 +472,52 @@ def test_gen4_frames_memory_is_bounded():
         extra.append((peak - 2 * (rec.events.nbytes + rec.truth.nbytes)) / 2**20)
     assert max(extra) < 200, extra
     assert abs(extra[1] - extra[0]) < 25, extra
+
+
+@pytest.mark.parametrize("fourcc, suffix", [("FFV1", ".avi"), ("MJPG", ".avi"), ("mp4v", ".mp4")])
+def test_video_opened_in_one_decoding(tmp_path, monkeypatch, fourcc, suffix):
+    """The container's times from its packets (no decoding) equal a decoding pass's; grey streams read unconverted."""
+    import cv2
+
+    import evedge.sim.frames as fr
+
+    frames, _ = _rendered_frames(10)
+    u8 = np.rint(frames * 255).astype(np.uint8)
+    path = tmp_path / f"v{suffix}"
+    wr = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 250.0, (u8.shape[2], u8.shape[1]), isColor=False)
+    assert wr.isOpened()
+    for f in u8:
+        wr.write(f)
+    wr.release()
+    decoded = []
+    cap = cv2.VideoCapture(str(path))
+    while cap.grab():
+        decoded.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
+    cap.release()
+    packets = fr._container_times(path, cv2)
+    assert packets is not None and packets.tobytes() == np.array(decoded).tobytes()
+    fast = open_video(path)
+    # the fallback (no usable packet times) gives the same source, and the unconverted grey the same frames
+    monkeypatch.setattr(fr, "_container_times", lambda p, c: None)
+    slow = open_video(path)
+    assert fast.times_s.tobytes() == slow.times_s.tobytes() and len(fast) == 10
+    assert fast._reader.grey == (fourcc == "FFV1")  # FFV1 grey is Y800; the others decode to YUV 4:2:0
+    slow._reader.grey = False
+    for k in range(10):
+        assert fast.frame(k).tobytes() == slow.frame(k).tobytes()
+    if fourcc == "FFV1":  # lossless: the frames as written
+        assert fast.frame(3).tobytes() == (u8[3] / 255.0).tobytes()
+    fast.close(), slow.close()
+
+
+def test_a_video_cut_mid_stream_is_named(tmp_path):
+    frames, _ = _rendered_frames(12)
+    _write_video(tmp_path / "v.avi", np.rint(frames * 255).astype(np.uint8), 250.0)
+    data = (tmp_path / "v.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[:len(data) * 2 // 3])
+    try:
+        rec = simulate_frames(open_video(tmp_path / "cut.avi"), progress=False)
+    except FramesError as err:
+        assert "cut.avi" in str(err)
+    else:  # the complete frames before the cut
+        assert 2 <= rec.metadata["n_frames"] < 12
