@@ -31,7 +31,15 @@ Temporal upsampling (``upsample = k`` samples per frame interval):
   times are those without upsampling (a linear function sampled more densely
   crosses its levels at the same instants); the sub-frames are the time base
   of the time-dependent sensor effects (photoreceptor low-pass), which then
-  see a smoother input.
+  see a smoother input. Without sensor effects the converter does not build
+  these sub-frames: :meth:`FramesRenderer.log_interval` hands it the two log
+  frames and the fractions, and its kernel
+  (:func:`evedge.sim._events._log_interval`) evaluates the same expression
+  per changing pixel and decides on it directly, where the image path takes
+  ``log(exp(L) - eps + eps)``: float times may differ in their last bits
+  (about 1e-15 s); the stored microsecond and nanosecond times were the
+  same bytes in every test (``tests/sim/test_frames.py``). Same seed, same
+  bytes, and chunked = one-shot, hold as before.
 - ``"flow"``: sub-frames from dense optical flow (OpenCV Farneback [2]_)
   between the two frames: at fraction ``a`` of the interval,
   ``I_a(x) = (1 - a) F0(x - a f(x)) + a F1(x + (1 - a) f(x))`` with ``f`` the
@@ -724,6 +732,44 @@ class FramesRenderer:
             self._next = (float(tk), k, j)
             self._buf[r] = self.intensity(float(tk))
         return times, self._buf[:n]
+
+    def log_interval(self, t_s: float, until_s: float):
+        """The next samples after ``t_s`` inside its frame interval, as log frames and fractions (no images).
+
+        For ``"log"`` upsampling: ``(l0, l1, a_prev, alphas, times_s)``, the
+        flat log frames at the ends of the interval of sample ``t_s``, its
+        fraction ``a_prev``, and the following samples' fractions and times
+        (up to the interval's end, the last one the first at or after
+        ``until_s``): the samples :meth:`samples` gives, whose log intensity
+        is ``(1 - a) * l0 + a * l1``. None when that does not apply (no log
+        upsampling, ``t_s`` not a sample time, or sample times that tie
+        across a frame); the converter then takes :meth:`samples`.
+        """
+        if self.upsample == 1 or self.interpolation != "log":
+            return None
+        t = float(t_s)
+        kp, jp = self._locate(t)
+        if jp is None or kp >= len(self._t) - 1:
+            return None
+        k, j = kp, jp
+        times, alphas = [], []
+        while True:  # the successors of sample (k, j), as in samples()
+            j += 1
+            if j == self.upsample:
+                k, j = k + 1, 0
+            tj = self._sample_time(k, j)
+            if tj <= t:
+                if k > kp:
+                    return None  # a sub-sample time ties the frame's: the general path
+                continue
+            t = tj
+            times.append(t)
+            alphas.append(1.0 if k > kp else j / self.upsample)
+            if k > kp or t >= until_s:
+                break
+        self._load_pair(kp)
+        l0, l1 = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in self._pair)
+        return l0, l1, jp / self.upsample, np.array(alphas), np.array(times)
 
     def flow(self, t_s: float):
         return None
