@@ -1,11 +1,12 @@
-"""Four primitives numba lacks, for strips that wait on each other (:mod:`evedge.detector._tiles`).
+"""Five primitives numba lacks, for strips that wait on each other (:mod:`evedge.detector._tiles`).
 
 ``_load_acquire(a, i)`` / ``_store_release(a, i, v)``: an atomic read / write of one
 element of an array (naturally aligned, as numpy allocates) with acquire / release ordering (a value written by one
 thread is seen by another, and not before what was written ahead of it);
 ``_claim(a, i)``: atomically turn ``a[i]`` from 0 into 1, True when this call did
 (a lock taken without waiting); ``_sched_yield()``: give the core away while
-waiting (the machine may be shared). LLVM intrinsics, so the kernels using them
+waiting (the machine may be shared); ``_clock_ns(id)``: ``clock_gettime``
+(a thread's CPU time, to tell work from waiting). LLVM intrinsics, so the kernels using them
 stay cacheable.
 """
 
@@ -58,3 +59,20 @@ def _claim(typingctx, arr, i):
         res = builder.cmpxchg(ptr, ir.Constant(ty, 0), ir.Constant(ty, 1), "seq_cst", "seq_cst")
         return builder.extract_value(res, 1)
     return types.boolean(arr, i), codegen
+
+
+@intrinsic
+def _clock_ns(typingctx, clock_id):
+    """POSIX ``clock_gettime(clock_id)`` in nanoseconds (int64); e.g. 3 = this thread's CPU time on Linux."""
+    def codegen(context, builder, sig, args):
+        i64 = ir.IntType(64)
+        spec = ir.LiteralStructType([i64, i64])
+        fn = cgutils.get_or_insert_function(builder.module,
+                                            ir.FunctionType(ir.IntType(32), [ir.IntType(32), spec.as_pointer()]),
+                                            "clock_gettime")
+        buf = cgutils.alloca_once(builder, spec)
+        builder.call(fn, [builder.trunc(args[0], ir.IntType(32)), buf])
+        sec = builder.load(builder.gep(buf, [ir.Constant(ir.IntType(32), 0), ir.Constant(ir.IntType(32), 0)]))
+        nsec = builder.load(builder.gep(buf, [ir.Constant(ir.IntType(32), 0), ir.Constant(ir.IntType(32), 1)]))
+        return builder.add(builder.mul(sec, ir.Constant(i64, 1_000_000_000)), nsec)
+    return types.int64(clock_id), codegen

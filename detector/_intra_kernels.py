@@ -30,7 +30,7 @@ from numba import njit
 
 from evedge._splitmix import _splitmix64
 
-from ._atomic import _load_acquire, _sched_yield, _store_release
+from ._atomic import _store_release
 
 _NEVER = np.iinfo(np.int64).min
 
@@ -72,9 +72,6 @@ _LOG_TABLE_MAX = 121
 
 #: Candidate planes computed together (their chains of dependent operations overlap).
 _BATCH = 4
-
-#: Reads of an unpublished halo decision before a strip gives up (returns, or yields the core).
-_SPINS = 20_000
 
 #: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
 _EXACT_SUM = 2**53
@@ -596,7 +593,7 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 
 @njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
-                  own_hi, dec, wait, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
+                  own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
                   t_start, reach_px, out_lt, out_vx, out_vy, out_valid, wf, wi):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
@@ -614,13 +611,12 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     rows ``own_lo <= y < own_hi``. Returns the index ``j`` where it stopped
     (``idx.size`` at the end).
 
-    Halo (events outside the owned rows, only with strips): ``dec`` (int8, per
-    event ``k``; empty without strips) carries each event's burst decision from the
-    strip that owns it: an owned event within ``half`` rows of its strip's edges
-    publishes ``1`` (new burst) or ``2`` (continues its pixel's burst); a halo
-    event replays that decision (SAE update
-    only, no fit). A halo event whose decision is not published yet (``0``) is
-    waited for (``wait``), or ends the call (it returns that event's ``j``).
+    Strips (:mod:`evedge.detector._tiles`): every event of ``idx`` must lie in the
+    owned rows; the caller replays the halo's events itself. An event within
+    ``half`` rows of the owned rows' edges (a neighbour's halo reads it) publishes,
+    for event ``k``, its pixel's ``prev_lt`` after it in ``dec_lt[k]``, then its burst
+    decision in ``dec[k]`` (int8, atomic release: ``1`` new burst, ``2`` continues
+    its pixel's burst). ``dec`` is empty without strips.
 
     Burst grouping (``burst > 0``): ``prev_lt`` (float, NaN = none) and ``prev_pol``
     (int8, -1 = none), laid out as ``sae`` and updated in place, hold the lifetime
@@ -660,22 +656,6 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         base = (p[k] if per_pol else 0) * rows * width
         si = base + yk * width + xk
         pk = np.int8(1) if p[k] else np.int8(0)
-        if not (own_lo <= y[k] < own_hi):
-            # a halo event: its owner's burst decision, the SAE as it left it, no fit
-            dk = _load_acquire(dec, k)
-            spins = 0
-            while dk == 0:
-                # the owner is usually microseconds behind: spin a while before giving up
-                spins += 1
-                if spins > _SPINS:
-                    if not wait:
-                        return j
-                    _sched_yield()
-                dk = _load_acquire(dec, k)
-            if dk == 1:
-                sae[si] = tk
-            prev_t[si] = tk
-            continue
         # prev_lt is NaN when the previous event had no estimate: the comparison is False
         cont = burst > 0.0 and prev_pol[si] == pk and tk - prev_t[si] <= burst * prev_lt[si]
         # start-up rule: the previous event of the burst has no estimate yet; try the continuation first
@@ -707,9 +687,6 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 cont = True  # the continuation fits and its own lifetime covers the gap: keep it
                 break
         # border rule: the fit still feeds the burst state below, but is not reported
-        if publish:
-            if y[k] < own_lo + half or y[k] >= own_hi - half:  # only neighbours' halos read it
-                _store_release(dec, k, 2 if cont else 1)
         # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border
                    or _history_short(tk, a, b, reach_px, t_start)):
@@ -735,6 +712,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         if not out_valid[j]:
             out_lt[j] = np.nan  # a border event's lifetime was kept above only for its burst state
         prev_pol[si] = pk
+        if publish and (y[k] < own_lo + half or y[k] >= own_hi - half):  # only neighbours' halos read it
+            dec_lt[k] = prev_lt[si]
+            _store_release(dec, k, 2 if cont else 1)
     return idx.shape[0]
 
 

@@ -11,41 +11,49 @@ Event buffer (radius 1)
 Intra-pixel estimator (window radius ``h``)
     An owned event's window reads the SAE up to ``h`` rows outside the strip
     (the halo). An SAE value there is written by a halo event, and whether
-    that event kept its pixel's burst time depends on the lifetime estimated
-    for the pixel's previous event, whose window reaches ``2 h`` rows out, and
-    so on: the dependence has no finite radius, so no fixed halo is enough by
-    itself. Instead the strip that owns an event publishes its burst decision
-    (new burst / continues the burst; an atomic int8 per event), and the
-    strips whose halo holds the event replay it with that decision (the SAE
-    update only, no fit), waiting for it when it is not published yet. By
-    induction over time the SAE every owned event reads is the serial one, so
-    every strip gives exactly the serial result (:func:`intra_tiled`). No
-    strip waits forever: the one holding the earliest unprocessed event needs
-    only decisions of earlier events, already taken.
+    that event kept its pixel's burst time depends on the lifetime kept for
+    the pixel's previous event, whose window reaches ``2 h`` rows out, and so
+    on: the dependence has no finite radius, so no fixed halo is enough by
+    itself. Instead the strip that owns an event near its edges publishes the
+    lifetime it keeps for the event's pixel (and its burst decision), and the
+    strips whose halo holds the pixel replay its events with the same burst
+    rule (SAE and burst state, no fit, :func:`_halo_event`): a halo event
+    needs only the lifetime of its pixel's *previous* event, one same-pixel
+    gap older (the start-up rule's trial, after an event without estimate,
+    needs the owner's decision of the event itself). An event that cannot run
+    yet is deferred, and so is every later event within the window radius of
+    a deferred one; the others run ahead, out of time order, because events
+    farther apart read and write disjoint state (:func:`_run_strip`). By
+    induction every event runs after all earlier events of its window, with
+    the serial SAE and burst state: every strip gives exactly the serial
+    result (:func:`intra_tiled`). No strip waits forever: the earliest event
+    not yet run anywhere is always ready.
 
 Random draws are keyed by the event's global index, so they do not depend on
-the strip either. Strips are as even as possible in rows. The buffer's strips
-run one per ``prange`` iteration; the estimator's are shared by numba's
-threads (:func:`_intra_parallel`): a worker runs any free strip until it needs
-a decision not yet published, then moves to another. Several narrow strips per
-thread keep the threads busy when the events move across the sensor: with 2
-row strips, an edge sweeping the rows of ``stripes.mat`` feeds one strip at a
-time (at most 1.49x on 2 threads, from the events per strip per ms); with 8
-strips shared by 2 threads, at most 1.84x (shapes_translation: 1.86 / 1.81x).
+the strip either. Both cut the rows at the quantiles of the events' rows
+(:func:`balanced_strips`: about as many events each). The buffer runs one strip
+per ``prange`` iteration; the estimator's strips are shared by
+numba's threads (:func:`_intra_parallel`): a worker runs any free strip until
+nothing in it can run, then moves to another.
+
+Speed (``benchmarks/bench_detector.py --tiles 2``): the simulated schedule of
+these rules on idle workers (``benchmarks/_strip_schedule.py``, one unit per
+fit) gives 1.91x on ``stripes.mat`` and 2.00x on shapes_translation with 2
+strips, 7.1x / 6.1x with 8; the strips' extra CPU per event (halo replays,
+deferral checks) is measured beside it.
 """
 
 from __future__ import annotations
+
+import math
 
 import numba
 import numpy as np
 from numba import njit, prange
 
-from ._atomic import _claim, _load_acquire, _sched_yield, _store_release
+from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
 from ._buffer_kernels import _buffer_scan, new_state
 from ._intra_kernels import _intra_stream, _scratch
-
-_DEBUG = False
-_HALO = 6
 
 
 def check_n_tiles(n_tiles, height: int) -> int:
@@ -63,12 +71,22 @@ def strips(height: int, n_tiles: int) -> np.ndarray:
     return np.stack([edges[:-1], edges[1:]], axis=1).astype(np.int64)
 
 
-def _strip_events(y: np.ndarray, lo: np.ndarray, hi: np.ndarray):
-    """Indices of the events of every strip's rows ``[lo, hi)``: concatenated, with offsets."""
-    parts = [np.flatnonzero((y >= a) & (y < b)) for a, b in zip(lo, hi)]
-    starts = np.zeros(len(parts) + 1, np.int64)
-    starts[1:] = np.cumsum([q.size for q in parts])
-    return np.concatenate(parts).astype(np.int64), starts
+def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
+    """Owned rows of each strip, ``(n_tiles, 2)`` int64 ``[lo, hi)``: about as many events each.
+
+    Cuts at the quantiles of the events' rows (each strip keeps at least one
+    row); where the strips are cut changes no result, only how evenly the work
+    is shared.
+    """
+    counts = np.bincount(np.asarray(y, np.int64), minlength=height)[:height]
+    cum = np.cumsum(counts)
+    edges = np.zeros(n_tiles + 1, np.int64)
+    edges[-1] = height
+    total = cum[-1] if cum.size else 0
+    for i in range(1, n_tiles):
+        c = int(np.searchsorted(cum, total * i / n_tiles, side="left")) + 1 if total else (height * i) // n_tiles
+        edges[i] = min(max(c, edges[i - 1] + 1), height - (n_tiles - i))
+    return np.stack([edges[:-1], edges[1:]], axis=1)
 
 
 # ---------------------------------------------------------------- event buffer
@@ -99,11 +117,14 @@ def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_
 
 
 def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool, n_tiles: int) -> np.ndarray:
-    """The event buffer's decisions over ``n_tiles`` strips in parallel (halo one row): the serial ones."""
-    own = strips(height, n_tiles)
+    """The event buffer's decisions over ``n_tiles`` strips in parallel (halo one row): the serial ones.
+
+    The strips are cut where they hold about as many events (:func:`balanced_strips`).
+    """
+    own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - 1, 0)
     hi = np.minimum(own[:, 1] + 1, height)
-    idx, starts = _strip_events(y, lo, hi)
+    idx, starts = _strip_index(y, lo, hi)
     supported = np.zeros(x.shape[0], bool)
     _buffer_tiles(x, y, t, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width, tau_us, causal,
                   supported)
@@ -112,95 +133,361 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 # ---------------------------------------------------------------- intra-pixel estimator
 
+#: Events handed to the stream kernel per call (decided ready before the call).
+_BATCH_EVENTS = 64
+
+#: Events a worker runs on one strip before moving on, when there are more strips than workers.
+_TURN_EVENTS = 2048
+
+#: ``clock_gettime``'s clock of the calling thread's CPU time (Linux).
+_THREAD_CPU = 3
+
+#: Deferred events a strip may hold (beyond that it waits); rounded up to a power of two.
+_QUEUE_MAX = 4096
+
+#: Events run before a strip looks again at a queue front that was not ready.
+_RECHECK_EVENTS = 8
+
+
+@njit(cache=True, inline="always")
+def _queued_near(qrow, qcnt, prow, r, xk, rows, width, half):
+    """Whether a deferred event of the plane whose rows start at ``prow`` lies within ``half`` px of ``(r, xk)``."""
+    for rr in range(max(r - half, 0), min(r + half, rows - 1) + 1):
+        if qrow[prow + rr] != 0:
+            row = (prow + rr) * width
+            for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
+                if qcnt[row + xx] != 0:
+                    return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _halo_event(k, si, tk, pk, sae, prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, apply):
+    """Replay halo event ``k`` at local pixel ``si`` (SAE and burst state, no fit); False when it cannot be yet.
+
+    When the owner has published the event, its decision and kept lifetime are
+    taken as they are. Otherwise the decision follows from the pixel's state
+    with the burst rule of :func:`_intra_stream` (same expressions), once the
+    lifetime its owner kept for the pixel's previous event is known: ``prev_lt``
+    of a halo pixel holds ``-(k' + 1)`` after a replayed event ``k'`` (lifetimes
+    are positive or NaN) until ``dec_lt[k']`` is published. The start-up rule's
+    trial (the previous event without estimate) needs the owner's decision of
+    the event itself. So a halo event mostly waits for an event one same-pixel
+    gap older, not for its own copy. With ``apply`` False, only whether it can.
+    A rule added to the burst decision in :func:`_intra_stream` must be added
+    here too (``tests/detector/test_tiles.py`` fails otherwise); a rule that
+    makes owned events read their neighbours' ``prev_lt`` must wait for the
+    owner's value instead (return False while ``dec[k]`` is 0).
+    """
+    d = _load_acquire(dec, k)
+    if d != 0:
+        cont = d == 2
+        lt_after = dec_lt[k]
+    elif burst <= 0.0:
+        cont = False  # no burst grouping: every event takes its pixel's time; no rule reads a halo's prev_lt
+        lt_after = np.nan
+    else:
+        lt = prev_lt[si]
+        if lt < 0.0:
+            kp = np.int64(-lt) - 1
+            if _load_acquire(dec, kp) == 0:
+                return False
+            lt = dec_lt[kp]
+        cont = prev_pol[si] == pk and tk - prev_t[si] <= burst * lt
+        if startup and not cont and prev_pol[si] == pk and math.isnan(lt):
+            return False  # the trial's fit decides: the owner's
+        lt_after = -np.float64(k + 1)
+    if apply:
+        if not cont:
+            sae[si] = tk
+        prev_t[si] = tk
+        prev_pol[si] = pk
+        prev_lt[si] = lt_after
+    return True
+
+
+@njit(cache=True)
+def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt, width,
+           height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m):
+    """Run the batch ``bpos[:m]`` (owned events, positions in ``seg``) through :func:`_intra_stream`."""
+    if m == 0:
+        return
+    for i in range(m):
+        bidx[i] = seg[bpos[i]]
+    _intra_stream(x, y, t, p, bidx[:m], 0, g0, sae, prev_t, prev_lt, prev_pol, kargs[0], width, height, row0, rows,
+                  own_lo, own_hi, dec, dec_lt, kargs[1], kargs[2], *kargs[3:], bl[:m], bvx[:m], bvy[:m],
+                  bvalid[:m], wf, wi)
+    for i in range(m):
+        jp = bpos[i]
+        out_lt[jp] = bl[i]
+        out_vx[jp] = bvx[i]
+        out_vy[jp] = bvy[i]
+        out_valid[jp] = bvalid[i]
+
+
+@njit(cache=True)
+def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt, qrow, queue, st, row0, rows,
+               own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos,
+               bidx, bl, bvx, bvy, bvalid, stats):
+    """Run one strip for up to ``budget`` events, out of time order where that is provably the same.
+
+    The strip's events are taken in time order from ``st[0]`` (cursor). An event
+    is *deferred* (appended to the strip's queue: ``st[1]`` head, ``st[2]``
+    tail) when it is a halo event that cannot be replayed yet
+    (:func:`_halo_event`), or when a deferred event of its SAE plane lies within
+    the window radius ``half`` of it (it may read that event's pixel, or that
+    event may read its pixel: the window is symmetric); otherwise it runs now.
+    The queue's front runs first, in time order, whenever it is ready. Two
+    events of different planes, or more than ``half`` px apart, read and write
+    disjoint state (window, pixel, burst state), so they commute; every event
+    still runs after all earlier events within its window: the SAE, burst state
+    and fit of each event are the serial ones. Owned events go to
+    :func:`_intra_stream` in batches; a halo event is replayed at once (after the
+    batch when the batch holds events within ``half`` rows of it, which read its
+    pixel). Returns the events run; ``stats[1]`` counts the deferred ones.
+    """
+    burst = kargs[0]
+    per_pol = kargs[1]
+    half = kargs[2]
+    startup = kargs[15]
+    n = seg.shape[0]
+    mask = queue.shape[0] - 1  # a power of two
+    nb = bpos.shape[0]
+    cur = st[0]
+    head = st[1]
+    tail = st[2]
+    done = 0
+    m = 0  # events in the batch
+    near_lo = 0  # of which within half rows of the strip's first / last owned row
+    near_hi = 0
+    recheck = 0
+    while done < budget:
+        jp = -1
+        looked = head < tail and done >= recheck
+        if looked:  # the queue's front, when ready
+            k = seg[queue[head & mask]]
+            pr = ((1 if p[k] else 0) if per_pol else 0) * rows + y[k] - row0
+            if own_lo <= y[k] < own_hi or _halo_event(k, pr * width + x[k], t[k], np.int8(1 if p[k] else 0), sae,
+                                                      prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup,
+                                                      False):
+                jp = queue[head & mask]
+                head += 1
+                qrow[pr] -= 1
+                qcnt[pr * width + x[k]] -= 1
+            else:
+                recheck = done + _RECHECK_EVENTS  # its neighbour is behind: run others a while
+        while jp < 0 and cur < n:  # else the next new event that can run, deferring the others
+            k = seg[cur]
+            pl = ((1 if p[k] else 0) if per_pol else 0) * rows
+            r = y[k] - row0
+            later = head < tail and _queued_near(qrow, qcnt, pl, r, x[k], rows, width, half)
+            if not later and not own_lo <= y[k] < own_hi:
+                later = not _halo_event(k, (pl + r) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t,
+                                        prev_lt, prev_pol, dec, dec_lt, burst, startup, False)
+            if not later:
+                jp = cur
+            elif tail - head > mask:
+                break  # the queue is full: wait for its front
+            else:
+                queue[tail & mask] = cur
+                tail += 1
+                qrow[pl + r] += 1
+                qcnt[(pl + r) * width + x[k]] += 1
+                stats[1] += 1
+            cur += 1
+        if jp < 0:
+            if head < tail and not looked:
+                recheck = done  # nothing else can run: look at the front again
+                continue
+            break  # nothing can run before a neighbour publishes
+        k = seg[jp]
+        if own_lo <= y[k] < own_hi:
+            if m == nb:
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt,
+                       width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy,
+                       bvalid, m)
+                stats[0] += 1
+                m = near_lo = near_hi = 0
+            bpos[m] = jp
+            m += 1
+            near_lo += 1 if y[k] < own_lo + half else 0
+            near_hi += 1 if y[k] >= own_hi - half else 0
+        else:
+            if (near_lo > 0 and y[k] < own_lo) or (near_hi > 0 and y[k] >= own_hi):
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt,
+                       width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy,
+                       bvalid, m)
+                stats[0] += 1
+                m = near_lo = near_hi = 0
+            pl = ((1 if p[k] else 0) if per_pol else 0) * rows
+            _halo_event(k, (pl + y[k] - row0) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t, prev_lt,
+                        prev_pol, dec, dec_lt, burst, startup, True)
+        done += 1
+    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt, width,
+           height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
+    stats[0] += 1 if m > 0 else 0
+    st[0] = cur
+    st[1] = head
+    st[2] = tail
+    return done
+
 
 @njit(parallel=True, cache=True)
-def _intra_parallel(n_threads, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, lo, rows, own_lo,
-                    own_hi, dec, burst, width, height, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
-                    min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border,
-                    jump_check, stale_frac, t_start, reach_px, out_lt, out_vx, out_vy, out_valid):
-    """``n_threads`` workers share the strips: each takes any free strip, runs it until it needs a
-    decision not yet taken (or to its end), gives it back, and moves on.
+def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, qcnt, roff,
+                    qrow, queue, qoff, lo, rows, own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx,
+                    out_vy, out_valid, stats, work):
+    """``n_threads`` workers share the strips: each takes any free strip, runs it (:func:`_run_strip`) for
+    ``turn`` events or until it must wait, gives it back, and moves on.
 
-    A strip is run by one worker at a time (``busy``, taken by compare-and-swap).
-    The strip holding the earliest unprocessed event never waits (a decision it
-    needs is of an earlier event, already taken), so some strip always
-    progresses, whatever the number of workers and however the system schedules
-    them; many narrow strips keep the workers busy when the events move across
-    the sensor (an edge sweeping the rows feeds one strip at a time).
+    A strip is run by one worker at a time (``busy``, taken by compare-and-swap;
+    its state is handed over by the release / acquire of that flag). Some strip
+    can always run, whatever the number of workers and however the system
+    schedules them: the earliest event not yet run anywhere is at its strip's
+    queue front, or next with an empty queue, and needs no decision not yet
+    taken (for a halo copy: of earlier events, or its owner's copy, which is as
+    early and ready). ``stats[s]``: batches, deferred events, turns, turns that
+    ran nothing, per strip; ``work[th]``: the worker's CPU time (ns) in turns that
+    ran events, in the others, and its events.
     """
+    half = kargs[2]
     n_tiles = lo.shape[0]
     busy = np.zeros(n_tiles, np.int64)
-    cursor = np.zeros(n_tiles, np.int64)
+    fin = np.zeros(n_tiles, np.int64)
+    state = np.zeros((n_tiles, 3), np.int64)
     for th in prange(n_threads):
+        c_start = _clock_ns(_THREAD_CPU)
         wf, wi = _scratch((2 * half + 1) ** 2)  # the worker's own, reused by every strip it runs
+        bpos = np.empty(_BATCH_EVENTS, np.int64)
+        bidx = np.empty(_BATCH_EVENTS, np.int64)
+        bl = np.empty(_BATCH_EVENTS)
+        bvx = np.empty(_BATCH_EVENTS)
+        bvy = np.empty(_BATCH_EVENTS)
+        bvalid = np.empty(_BATCH_EVENTS, np.bool_)
         s = th % n_tiles
         idle = 0
         while True:
             finished = 0
             progressed = False
             for _ in range(n_tiles):
-                seg = idx[starts[s]:starts[s + 1]]
-                if _load_acquire(cursor, s) == seg.shape[0]:
+                if _load_acquire(fin, s) == 1:
                     finished += 1
                 elif _claim(busy, s):
-                    j0 = cursor[s]
-                    o0 = off[s]
-                    o1 = off[s + 1]
                     a = starts[s]
                     b = starts[s + 1]
-                    j = _intra_stream(x, y, t, p, seg, j0, g0, sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
-                                      prev_pol[o0:o1], burst, width, height, lo[s], rows[s], own_lo[s], own_hi[s],
-                                      dec, False, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob,
-                                      min_points, min_inliers, intercept, fallback, seed, gap_ratio, on_plane,
-                                      startup, border, jump_check, stale_frac, t_start, reach_px, out_lt[a:b],
-                                      out_vx[a:b], out_vy[a:b], out_valid[a:b], wf, wi)
-                    _store_release(cursor, s, j)
+                    o0 = off[s]
+                    o1 = off[s + 1]
+                    c0 = _clock_ns(_THREAD_CPU)
+                    done = _run_strip(turn, x, y, t, p, g0, idx[a:b], sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
+                                      prev_pol[o0:o1], qcnt[o0:o1], qrow[roff[s]:roff[s + 1]],
+                                      queue[qoff[s]:qoff[s + 1]], state[s], lo[s], rows[s], own_lo[s], own_hi[s],
+                                      dec, dec_lt, width, height, kargs, out_lt[a:b], out_vx[a:b], out_vy[a:b],
+                                      out_valid[a:b], wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, stats[s])
+                    if done > 0:
+                        work[th, 0] += _clock_ns(_THREAD_CPU) - c0
+                    work[th, 2] += done
+                    stats[s, 2] += 1
+                    stats[s, 3] += 1 if done == 0 else 0
+                    if state[s, 0] == b - a and state[s, 1] == state[s, 2]:
+                        _store_release(fin, s, 1)
                     _store_release(busy, s, 0)
-                    progressed = progressed or j > j0
+                    progressed = progressed or done > 0
                 s = (s + 1) % n_tiles
             if finished == n_tiles:
                 break
             idle = 0 if progressed else idle + 1
-            if idle > 0:  # every strip waited _SPINS reads in vain: give the core away
+            if idle > 0:  # no strip could run: give the core away
                 _sched_yield()
+        work[th, 1] = _clock_ns(_THREAD_CPU) - c_start - work[th, 0]
 
 
-def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple):
+@njit(cache=True)
+def _strip_index(y, lo, hi):
+    """The events of every strip's rows ``[lo, hi)`` in time order, concatenated, and the strips' offsets.
+
+    The strips are sorted and overlap only in their halos, so the strips holding
+    a row are a contiguous range, found once per row.
+    """
+    n_tiles = lo.shape[0]
+    height = hi[-1]
+    first = np.full(height, n_tiles, np.int64)
+    last = np.full(height, -1, np.int64)
+    for s in range(n_tiles):
+        for r in range(lo[s], hi[s]):
+            first[r] = min(first[r], s)
+            last[r] = max(last[r], s)
+    starts = np.zeros(n_tiles + 1, np.int64)
+    for k in range(y.shape[0]):
+        for s in range(first[y[k]], last[y[k]] + 1):
+            starts[s + 1] += 1
+    for s in range(n_tiles):
+        starts[s + 1] += starts[s]
+    idx = np.empty(starts[-1], np.int64)
+    fill = starts[:-1].copy()
+    for k in range(y.shape[0]):
+        for s in range(first[y[k]], last[y[k]] + 1):
+            idx[fill[s]] = k
+            fill[s] += 1
+    return idx, starts
+
+
+@njit(cache=True)
+def _put_owned(idx, starts, y, own_lo, own_hi, slot_lt, slot_vx, slot_vy, slot_valid, lt, vx, vy, valid):
+    """Each strip's outputs of its owned events (slots aligned with ``idx``) into the per-event arrays."""
+    for s in range(own_lo.shape[0]):
+        for j in range(starts[s], starts[s + 1]):
+            k = idx[j]
+            if own_lo[s] <= y[k] < own_hi[s]:
+                lt[k] = slot_lt[j]
+                vx[k] = slot_vx[j]
+                vy[k] = slot_vy[j]
+                valid[k] = slot_valid[j]
+
+
+def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
+                stats: np.ndarray | None = None, work: np.ndarray | None = None):
     """The intra-pixel estimator over ``n_tiles`` strips; the serial result (module notes).
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
     updated in place; ``kernel_args`` are :func:`_intra_stream`'s arguments from
-    ``burst`` to ``reach_px`` without the geometry (``burst, per_pol, half, delta,
+    ``burst`` to the end of the parameters, without the geometry (``burst, per_pol, half, delta,
     thr_us, thr_rel, max_trials, stop_prob, min_points, min_inliers, intercept,
-    fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac, t_start,
-    reach_px``); ``outs`` is ``(lt, vx, vy, valid)``. The strips are
-    shared by ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`).
+    fallback, seed, gap_ratio, on_plane, startup, border``, ...); ``outs`` is ``(lt, vx, vy, valid)``. The
+    strips are cut where they hold about as many events (:func:`balanced_strips`) and shared by
+    ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64 ``(n_tiles, 4)``)
+    and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
-    own = strips(height, n_tiles)
+    own = balanced_strips(y, height, n_tiles)
     own_lo = own[:, 0].copy()
     own_hi = own[:, 1].copy()
     lo = np.maximum(own_lo - half, 0)
     hi = np.minimum(own_hi + half, height)
     rows = hi - lo
-    idx, starts = _strip_events(y, lo, hi)
+    idx, starts = _strip_index(y, lo, hi)
     off = np.zeros(n_tiles + 1, np.int64)
     off[1:] = np.cumsum(planes * rows * width)
+    roff = np.zeros(n_tiles + 1, np.int64)
+    roff[1:] = np.cumsum(planes * rows)
+    qoff = np.zeros(n_tiles + 1, np.int64)
+    qoff[1:] = np.cumsum(np.full(n_tiles, 1 << max(int(_QUEUE_MAX) - 1, 1).bit_length()))
     local = [np.empty(off[-1], a.dtype) for a in state]
     for s in range(n_tiles):
         for g, l in zip(state, local):
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
+    dec = np.zeros(x.shape[0], np.int8)
     # outputs per slot (each strip writes its own memory), then put in place
     slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
-    _intra_parallel(min(n_tiles, numba.get_num_threads()), x, y, t, p, g0, idx, starts, off, *local, lo, rows,
-                    own_lo, own_hi, np.zeros(x.shape[0], np.int8), kernel_args[0], width, height, *kernel_args[1:],
-                    *slot_outs)
-    ys = y[idx]
-    tile_of = np.repeat(np.arange(n_tiles), np.diff(starts))
-    owned = (ys >= own_lo[tile_of]) & (ys < own_hi[tile_of])
-    for o, so in zip(outs, slot_outs):
-        o[idx[owned]] = so[owned]
+    threads = min(n_tiles, numba.get_num_threads())
+    if stats is None:
+        stats = np.zeros((n_tiles, 4), np.int64)
+    if work is None:
+        work = np.zeros((threads, 3), np.int64)
+    _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0, idx,
+                    starts, off, *local, np.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
+                    np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec, np.empty(x.shape[0]), width,
+                    height, tuple(kernel_args), *slot_outs, stats, work)
+    _put_owned(idx, starts, y, own_lo, own_hi, *slot_outs, *outs)
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
         for g, l in zip(state, local):

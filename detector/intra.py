@@ -303,6 +303,7 @@ __all__ = ["IntraParams", "IntraPixelLifetime", "ROBUST", "WindowFit", "estimate
            "fit_windows", "robust_params"]
 
 _NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
+_NO_HALO_LT = np.empty(0)
 
 
 @dataclass(frozen=True)
@@ -550,7 +551,7 @@ class IntraPixelLifetime:
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
-                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, False, per_pol, half, *args[3:],
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half, *args[3:],
                           lt, vx, vy, valid, *self._scratch)
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
