@@ -20,7 +20,7 @@ into memory, then converted by :func:`evedge.sim.simulate_frames` (ESIM's
 algorithm, the scenes' pixel model): the frames path's speed without decoding, as the
 best of 3 runs and as a ratio to the 2.5 sim-s/s target; the same frames converted
 frame by frame (the converter without its batches of frames), 1 kHz frames upsampled
-x5 (log interpolation: 5 kHz samples), and end to end from a lossless 8-bit video
+x5 (log interpolation: 5 kHz samples) and the same through sub-frame images (A/B), and end to end from a lossless 8-bit video
 (FFV1, written to a temporary folder, not timed) with the share of opening and decoding, and the 5 kHz
 video once more as before its single decoding (an opening pass that decoded every frame, frames through
 BGR): the A/B ratio in one run.
@@ -95,7 +95,9 @@ def _frames_row(label, scene, duration_s, cpu, rec, what):
 
 
 def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, upsample: int = 1,
-            per_frame: bool = False) -> None:
+            per_frame: bool = False, sub_frame_images: bool = False) -> None:
+    """Frames in memory (rendered, not timed). ``per_frame``: without batches of frames; ``sub_frame_images``:
+    log upsampling through sub-frame images (before the log-interval kernel), for the A/B ratio in one run."""
     import numpy as np
 
     from evedge.sim import frames_from_arrays, simulate_frames
@@ -104,9 +106,11 @@ def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, 
     r = scene.build_renderer()
     t = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
     frames = np.stack([r.intensity(float(tk)) for tk in t])
-    samples = FramesRenderer.samples
+    samples, log_interval = FramesRenderer.samples, FramesRenderer.log_interval
     if per_frame:  # the converter without batches of frames (what it does with sensor effects on)
         FramesRenderer.samples = None
+    if sub_frame_images:
+        FramesRenderer.log_interval = None
     try:
         def run(fr=frames, tt=t, seed=scene.seed):
             return simulate_frames(frames_from_arrays(fr, tt), scene.params, seed=seed, upsample=upsample,
@@ -115,7 +119,7 @@ def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, 
         run(frames[:5], t[:5])  # warm-up
         cpu, rec = _best_cpu(run, repeats)
     finally:
-        FramesRenderer.samples = samples
+        FramesRenderer.samples, FramesRenderer.log_interval = samples, log_interval
     what = f"{len(t)} frames at {rate_hz:g} Hz" + (f", upsampled x{upsample} (log)" if upsample > 1 else "")
     _frames_row(label, scene, duration_s, cpu, rec, what + f", best of {repeats}")
 
@@ -205,6 +209,7 @@ def main() -> None:
     _frames("shapes_translation frames in (5 kHz)", tr, 0.4 * k, 5000.0, reps)
     _frames("... 5 kHz, frame by frame (no batches)", tr, 0.4 * k, 5000.0, reps, per_frame=True)
     _frames("... 1 kHz upsampled x5 (5 kHz samples)", tr, 0.4 * k, 1000.0, reps, upsample=5)
+    _frames("... the same, sub-frame images (A/B)", tr, 0.4 * k, 1000.0, reps, upsample=5, sub_frame_images=True)
     _video("shapes_translation video in (1 kHz, FFV1)", tr, 1.0 * k, 1000.0, reps)
     _video("shapes_translation video in (5 kHz, FFV1)", tr, 0.4 * k, 5000.0, reps)
     _video("... 5 kHz video, decoded twice (A/B)", tr, 0.4 * k, 5000.0, reps, two_decodes=True)
