@@ -229,8 +229,8 @@ simulator's truth, 48-57 % of the same-polarity edge passages of a pixel make
 no event at r = 1.3 and 50-200 px/s (38-44 % at r = 1.7; 0-1.6 % at r >= 2.2).
 Probing every estimate more than 2x off at r = 1.3, 200 px/s, 0 degrees against
 the truth (passage index of every window point): all of them were over-
-estimates, and 925 of the 940 estimates whose window held at most 3 neighbours
-of the current passage were more than 2x off, against none of those with 4 or
+estimates, and 915 of the 930 estimates whose window held at most 3 neighbours
+of the current passage were more than 2x off, against 10 of the 6761 with 4 or
 more. Those windows are the current event, a few current points and stale
 levels one and two periods older; the linkage split's forced growth (taken
 while the cluster fixes no plane) jumped to a stale level and the next jump,
