@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import sys
 import time
 from dataclasses import dataclass
 
@@ -248,7 +249,8 @@ def score(rec, lifetimes) -> dict:
 
 @dataclass(frozen=True)
 class CellTask:
-    """One cell to run (picklable): the scene and the methods, each ``(label, method, params or None)``."""
+    """One cell to run (picklable): the scene and the methods, each ``(label, method, params or None)``
+    or ``(label, method, params, buffer_params)`` (the noise filter's parameters, e.g. a longer ``tau_min_us``)."""
 
     kind: str
     params: tuple  # (name, value) pairs of the cell, as cells() gives them
@@ -273,9 +275,10 @@ def run_cell(task: CellTask) -> dict:
                    progress=False)
     row = {"kind": task.kind, **{k: kw.get(k, "") for k in ("angle_deg", "speed", "r", "noise_hz")},
            "n_events": int(rec.events.size), "sim_cpu_s": time.process_time() - c0}
-    for label, method, params in task.methods:
+    for label, method, params, *buffer in task.methods:
         c1 = time.process_time()
-        res = detect(rec.events, rec.sensor_size, method=method, params=params)
+        res = detect(rec.events, rec.sensor_size, method=method, params=params,
+                     buffer_params=buffer[0] if buffer else None)
         row[f"{label}_cpu_s"] = time.process_time() - c1
         for k, v in score(rec, res.lifetimes).items():
             row[f"{label}_{k}"] = v
@@ -303,7 +306,6 @@ def run_grid(cell_tasks, *, workers: int | None = None, scheduler: str | None = 
     failures = []
     if workers == 0 and client is None and scheduler is None:
         from tqdm import tqdm
-        import sys
 
         for i, task in enumerate(tqdm(cell_tasks, desc="cells", unit="cell", disable=not progress, file=sys.stderr)):
             try:

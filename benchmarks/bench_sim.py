@@ -20,8 +20,10 @@ into memory, then converted by :func:`evedge.sim.simulate_frames` (ESIM's
 algorithm, the scenes' pixel model): the frames path's speed without decoding, as the
 best of 3 runs and as a ratio to the 2.5 sim-s/s target; the same frames converted
 frame by frame (the converter without its batches of frames), 1 kHz frames upsampled
-x5 (log interpolation: 5 kHz samples), and end to end from a lossless 8-bit video
-(FFV1, written to a temporary folder, not timed) with the share of opening and decoding.
+x5 (log interpolation: 5 kHz samples) and the same through sub-frame images (A/B), and end to end from a lossless 8-bit video
+(FFV1, written to a temporary folder, not timed) with the share of opening and decoding, and the 5 kHz
+video once more as before its single decoding (an opening pass that decoded every frame, frames through
+BGR): the A/B ratio in one run.
 """
 
 from __future__ import annotations
@@ -93,7 +95,9 @@ def _frames_row(label, scene, duration_s, cpu, rec, what):
 
 
 def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, upsample: int = 1,
-            per_frame: bool = False) -> None:
+            per_frame: bool = False, sub_frame_images: bool = False) -> None:
+    """Frames in memory (rendered, not timed). ``per_frame``: without batches of frames; ``sub_frame_images``:
+    log upsampling through sub-frame images (before the log-interval kernel), for the A/B ratio in one run."""
     import numpy as np
 
     from evedge.sim import frames_from_arrays, simulate_frames
@@ -102,9 +106,11 @@ def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, 
     r = scene.build_renderer()
     t = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
     frames = np.stack([r.intensity(float(tk)) for tk in t])
-    samples = FramesRenderer.samples
+    samples, log_interval = FramesRenderer.samples, FramesRenderer.log_interval
     if per_frame:  # the converter without batches of frames (what it does with sensor effects on)
         FramesRenderer.samples = None
+    if sub_frame_images:
+        FramesRenderer.log_interval = None
     try:
         def run(fr=frames, tt=t, seed=scene.seed):
             return simulate_frames(frames_from_arrays(fr, tt), scene.params, seed=seed, upsample=upsample,
@@ -113,19 +119,29 @@ def _frames(label: str, scene, duration_s: float, rate_hz: float, repeats: int, 
         run(frames[:5], t[:5])  # warm-up
         cpu, rec = _best_cpu(run, repeats)
     finally:
-        FramesRenderer.samples = samples
+        FramesRenderer.samples, FramesRenderer.log_interval = samples, log_interval
     what = f"{len(t)} frames at {rate_hz:g} Hz" + (f", upsampled x{upsample} (log)" if upsample > 1 else "")
     _frames_row(label, scene, duration_s, cpu, rec, what + f", best of {repeats}")
 
 
-def _video(label: str, scene, duration_s: float, rate_hz: float, repeats: int) -> None:
-    """End to end from a lossless 8-bit video file (FFV1 in AVI, OpenCV), with the share of opening and decoding."""
+def _video(label: str, scene, duration_s: float, rate_hz: float, repeats: int, two_decodes: bool = False) -> None:
+    """End to end from a lossless 8-bit video file (FFV1 in AVI, OpenCV), with the share of opening and decoding.
+
+    ``two_decodes``: as before the packet-time opening and the unconverted grey frames (an opening pass that
+    decodes every frame, then frames converted to BGR and back to grey), for the A/B ratio in one run.
+    """
     import tempfile
 
     import cv2
     import numpy as np
 
+    import evedge.sim.frames as frames_mod
     from evedge.sim import open_video, simulate_frames
+
+    patched = {"_container_times": lambda path, cv: None, "_fourcc": lambda cap, cv: b""} if two_decodes else {}
+    saved = {name: getattr(frames_mod, name) for name in patched}
+    for name, f in patched.items():
+        setattr(frames_mod, name, f)
 
     r = scene.build_renderer()
     t = np.arange(int(round(duration_s * rate_hz)) + 1) / rate_hz
@@ -151,8 +167,10 @@ def _video(label: str, scene, duration_s: float, rate_hz: float, repeats: int) -
                                                      progress=False), repeats)
         cpu_open, _ = _best_cpu(lambda: open_video(path, rate_hz=rate).close(), repeats)
         cpu_decode, _ = _best_cpu(decode_only, repeats)
+    for name, f in saved.items():
+        setattr(frames_mod, name, f)
     _frames_row(label, scene, duration_s, cpu, rec, f"{len(t)} frames at {rate_hz:g} Hz, best of {repeats}")
-    print(f"{'':44s} of which opening (frame count and times: one pass) {cpu_open:.3f} s, opening + decoding "
+    print(f"{'':44s} of which opening (frame count and times) {cpu_open:.3f} s, opening + decoding "
           f"to grey float64 {cpu_decode:.3f} s = {cpu_decode / cpu:.0%} of the total", flush=True)
 
 
@@ -191,8 +209,10 @@ def main() -> None:
     _frames("shapes_translation frames in (5 kHz)", tr, 0.4 * k, 5000.0, reps)
     _frames("... 5 kHz, frame by frame (no batches)", tr, 0.4 * k, 5000.0, reps, per_frame=True)
     _frames("... 1 kHz upsampled x5 (5 kHz samples)", tr, 0.4 * k, 1000.0, reps, upsample=5)
+    _frames("... the same, sub-frame images (A/B)", tr, 0.4 * k, 1000.0, reps, upsample=5, sub_frame_images=True)
     _video("shapes_translation video in (1 kHz, FFV1)", tr, 1.0 * k, 1000.0, reps)
     _video("shapes_translation video in (5 kHz, FFV1)", tr, 0.4 * k, 5000.0, reps)
+    _video("... 5 kHz video, decoded twice (A/B)", tr, 0.4 * k, 5000.0, reps, two_decodes=True)
     print(f"load average at the end {os.getloadavg()[0]:.1f}")
     if args.frames_only:
         return

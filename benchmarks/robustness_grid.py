@@ -25,7 +25,8 @@ Run ``.venv/bin/python benchmarks/robustness_grid.py --quick`` (a reduced grid, 
 starts from :func:`~evedge.detector.intra.robust_params` / :func:`~evedge.detector.intra.noise_params`
 instead of the defaults; ``--intra key=value``
 (repeatable) changes an :class:`~evedge.detector.intra.IntraParams` field on top, e.g.
-``--intra newer_share_max=0.25`` to measure a departure from the paper;
+``--intra newer_share_max=0.25`` to measure a departure from the paper; ``--buffer
+tau_min_us=30000`` changes the proposed detector's event buffer (the paper's 10 ms by default);
 ``--scene SCENE.toml`` scores one scene file instead (the ``--preset`` / ``--intra`` parameters,
 both presets and Mueggler's); ``--csv FILE`` writes every cell's figures, ``--plot FILE.png`` draws them (clean stripes: median error and share > 2x off against
 speed per contrast ratio, median over the angles; noisy cells: share of noise events given a
@@ -47,6 +48,7 @@ import time
 import numpy as np
 
 from evedge.bench.robustness import STEADY_US, cells, run_grid, score, tasks
+from evedge.detector.buffer import BufferParams
 from evedge.detector.intra import IntraParams, noise_params, robust_params
 from evedge.detector.pipeline import detect
 from evedge.sim import simulate
@@ -82,6 +84,25 @@ def _parse_intra(items, base: IntraParams | None = None) -> IntraParams:
         raise SystemExit(f"--intra: {err}") from None
 
 
+def _parse_buffer(items) -> BufferParams:
+    kw = {}
+    names = [f.name for f in dataclasses.fields(BufferParams)]
+    for item in items:
+        key, _, value = item.partition("=")
+        if key not in names:
+            raise SystemExit(f"--buffer: unknown BufferParams field {key!r} (fields: {', '.join(names)})")
+        kw[key] = value
+        if key == "tau_min_us":
+            try:
+                kw[key] = int(float(value))
+            except ValueError:
+                raise SystemExit(f"--buffer tau_min_us: expected a number of microseconds, got {value!r}") from None
+    try:
+        return BufferParams(**kw)
+    except (TypeError, ValueError) as err:
+        raise SystemExit(f"--buffer: {err}") from None
+
+
 def _fmt(v, pct=True):
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return "-"
@@ -96,6 +117,8 @@ def main(argv=None) -> int:
     ap.add_argument("--preset", choices=tuple(PRESETS), default="defaults",
                     help="IntraParams to start from: the defaults, robust_params() or noise_params()")
     ap.add_argument("--intra", action="append", default=[], metavar="KEY=VALUE", help="IntraParams field")
+    ap.add_argument("--buffer", action="append", default=[], metavar="KEY=VALUE",
+                    help="BufferParams field of the proposed detector's event buffer (e.g. tau_min_us=30000)")
     ap.add_argument("--no-mueggler", action="store_true", help="skip the baseline")
     ap.add_argument("--only", default=None, choices=("stripes", "rotation", "shapes"), help="only cells of this kind")
     ap.add_argument("--workers", type=int, default=None,
@@ -117,7 +140,8 @@ def main(argv=None) -> int:
     except ValueError:
         ap.error(f"--size: expected WxH, e.g. 96x72, got {size!r}")
     grid = [c for c in cells(args.quick) if args.only is None or c[0] == args.only]
-    methods = [("intra", "intra", params)] + ([] if args.no_mueggler else [("mueggler", "mueggler", None)])
+    buffer = _parse_buffer(args.buffer)
+    methods = [("intra", "intra", params, buffer)] + ([] if args.no_mueggler else [("mueggler", "mueggler", None)])
     names = [m[0] for m in methods]
     wall = time.perf_counter()
     rows, failures = run_grid(tasks(grid, width, height, args.seed, methods), workers=args.workers,
@@ -127,7 +151,7 @@ def main(argv=None) -> int:
         print(f"cell {task.kind} {dict(task.params)} failed: {type(err).__name__}: {err}", file=sys.stderr)
     if not rows:
         return 1
-    print(f"grid {size}, seed {args.seed}, {len(rows)} cells, intra params: {params}")
+    print(f"grid {size}, seed {args.seed}, {len(rows)} cells, intra params: {params}, buffer: {buffer}")
     print(_table(rows, names))
     _summary(rows, names)
     cpu = {m: sum(r[f"{m}_cpu_s"] for r in rows) for m in names}

@@ -370,3 +370,83 @@ def _frames_batch(frames, n_frames, times, i_prev, t_prev, eps, lref, e_hi, e_lo
                    jitter_s, jitter_seed, True, cand, m, out_pix[n:], out_t_true[n:], out_t[n:], out_p[n:])
         n += k
     return n, out_pix, out_t_true, out_t, out_p
+
+
+@njit(cache=True)
+def _log_interval(l0, l1, a_prev, alphas, t_prev, times, n_samples, lref, e_hi, e_lo, cpos, cneg, last_t,
+                  refractory_s, seq, jitter_s, jitter_seed, cand, out_pix, out_t_true, out_t, out_p):
+    """Events of samples interpolated in log intensity inside one frame interval, without building them.
+
+    ``l0`` and ``l1`` are the log frames ``L = log(I + eps)`` at the ends of
+    the interval; the sample at fraction ``a`` of it is
+    ``L_a = (1 - a) * l0 + a * l1`` (``l0`` itself at ``a = 0``, ``l1`` at
+    ``a = 1``), the expression :class:`~evedge.sim.frames.FramesRenderer`
+    evaluates in numpy, evaluated here per pixel. The batch starts at the
+    sample ``(t_prev, a_prev)`` and has ``n_samples`` more, at ``times`` and
+    fractions ``alphas``.
+
+    The pixels with ``l0 != l1`` are the only ones that change; each is
+    followed through all the samples at once (the output is ordered later,
+    by time and pixel), with :func:`_crossings`' decision and crossing
+    instant on ``L`` directly. The frame-by-frame path takes
+    ``log(exp(L_a) - eps + eps)`` instead, which may differ from ``L_a`` in
+    its last bits: the events are the same up to crossings within an ulp of
+    a level, and their times agree to about 1e-15 s (tested).
+
+    Returns ``(n_events, out_pix, out_t_true, out_t, out_p)`` (the buffers
+    grow as needed), or ``n_events = -1`` with nothing changed when a
+    changing pixel of ``l0`` or ``l1`` is not finite (the caller then takes
+    the frame-by-frame path, which names the sample).
+    """
+    m = 0
+    for i in range(l0.shape[0]):
+        if l0[i] == l1[i]:
+            continue  # unchanged over the whole interval (most pixels)
+        if not (math.isfinite(l0[i]) and math.isfinite(l1[i])):
+            return -1, out_pix, out_t_true, out_t, out_p
+        cand[m] = i
+        m += 1
+    n = 0
+    for c in range(m):
+        i = cand[c]
+        x0 = l0[i]
+        x1 = l1[i]
+        lr = lref[i]
+        cp = cpos[i]
+        cn = cneg[i]
+        last = last_t[i]
+        k = seq[i]
+        moved = False
+        lb = x0 if a_prev == 0.0 else (1.0 - a_prev) * x0 + a_prev * x1
+        tb = t_prev
+        for s in range(n_samples):
+            la = lb
+            ta = tb
+            a = alphas[s]
+            lb = x1 if a == 1.0 else (1.0 - a) * x0 + a * x1
+            tb = times[s]
+            on, step = _first_step(lb, lr, cp, cn)
+            if step == 0.0:
+                continue
+            moved = True
+            span = tb - ta
+            while (lb >= lr + step) if on else (lb <= lr + step):
+                lr += step
+                tc = ta + (lr - la) / (lb - la) * span
+                if tc - last >= refractory_s:
+                    if n == out_pix.shape[0]:
+                        out_pix, out_t_true, out_t, out_p = _grow(out_pix, out_t_true, out_t, out_p, n + 1)
+                    out_pix[n] = i
+                    out_t_true[n] = tc
+                    out_t[n] = tc + jitter_s * _half_normal(jitter_seed, i, k) if jitter_s > 0 else tc
+                    out_p[n] = on
+                    n += 1
+                    k += 1
+                    last = tc
+        if moved:
+            lref[i] = lr
+            e_hi[i] = math.exp(lr + cp)
+            e_lo[i] = math.exp(lr - cn)
+            last_t[i] = last
+            seq[i] = k
+    return n, out_pix, out_t_true, out_t, out_p

@@ -75,8 +75,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._events import (_box_spans, _crossings, _frames_batch, _max_log_gradient, _noise, _noise_first_arrivals,
-                      _scan, _scan_frame)
+from ._events import (_box_spans, _crossings, _frames_batch, _log_interval, _max_log_gradient, _noise,
+                      _noise_first_arrivals, _scan, _scan_frame)
 from ._coverage import _HALF_DIAG
 from ._exact import (_crossing_levels, _drop_marked, _extremum_flags, _hidden_crossing, _path_crossing_levels,
                      _refractory_jitter, _root_start, _root_step)
@@ -570,6 +570,13 @@ class EventConverter:
         events, the state and the noise afterwards.
         """
         p = self.params
+        log_interval = getattr(self.renderer, "log_interval", None)
+        if log_interval is not None and self._log_interval_step(log_interval(self.t, limit)):
+            return
+        if self._i is None:  # the present sample as an image, from the log frames of the last interval step
+            l0, l1, a = self._i_log
+            lg = l0 if a == 0.0 else l1 if a == 1.0 else (1.0 - a) * l0 + a * l1
+            self._i = np.exp(lg) - p.log_eps
         times, images = self.renderer.samples(self.t, limit, self._batch_n)
         times = np.minimum(np.asarray(times, dtype=np.float64), self.duration_s)
         n = times.shape[0]
@@ -602,6 +609,44 @@ class EventConverter:
         self.n_samples += n
         if p.noise_rate_hz > 0 and t1 > self._noise_until:
             self._noise_block(t1)
+
+    def _log_interval_step(self, got) -> bool:
+        """Samples interpolated in log intensity inside one frame interval (the renderer's ``log_interval``).
+
+        :func:`_log_interval` follows each changing pixel through the samples
+        without building them (see there for the bytes). False (nothing done)
+        when the renderer gave None or a changing pixel is not finite.
+        """
+        if got is None:
+            return False
+        p = self.params
+        l0, l1, a_prev, alphas, times = got
+        times = np.minimum(np.asarray(times, dtype=np.float64), self.duration_s)
+        n = times.shape[0]
+        npix = self.width * self.height
+        if n == 0 or not (times[0] > self.t and np.all(times[1:] > times[:-1])) or l0.shape != (npix,) \
+                or l1.shape != (npix,):
+            raise ValueError(f"renderer {type(self.renderer).__name__}.log_interval({self.t}) returned "
+                             f"{n} samples from {times[:5]!r}, frames {l0.shape} and {l1.shape}")
+        cap = max(1024, 2 * self._batch_events)
+        out = (np.empty(cap, dtype=np.int64), np.empty(cap), np.empty(cap), np.empty(cap, dtype=np.bool_))
+        m, pix, t_true, t_emit, pol = _log_interval(
+            l0, l1, float(a_prev), np.asarray(alphas, dtype=np.float64), self.t, times, n, self.lref, self.e_hi,
+            self.e_lo, self.cpos, self.cneg, self.last_t, p.refractory_us * 1e-6, self.seq, p.jitter_us * 1e-6,
+            self._jitter_seed, self._cand, *out)
+        if m < 0:
+            return False
+        self._batch_events = m
+        if m:
+            self._pending.append((pix[:m], t_emit[:m], t_true[:m], pol[:m], None))  # truth at the flush
+        t1 = float(times[-1])
+        self.t = t1
+        self._i = None  # made from these when a later step needs it as an image
+        self._i_log = (l0, l1, float(alphas[-1]))
+        self.n_samples += n
+        if p.noise_rate_hz > 0 and t1 > self._noise_until:
+            self._noise_block(t1)
+        return True
 
     def _advance(self, t1: float, i1: np.ndarray, n_cand: int) -> None:
         """Emit the events of ``[self.t, t1]`` (``n_cand`` candidates scanned) and make ``t1`` the present sample."""

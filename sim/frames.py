@@ -16,10 +16,14 @@ as they are; colour converted to grey by OpenCV's BGR2GRAY) or already-log
 (``log_input``: the values are ``L`` and ``I = exp(L) - eps`` is handed to the
 converter, which takes the log back).
 
-Timestamps: the container's (``CAP_PROP_POS_MSEC`` per frame), a text file
-(one time in seconds per line, as esim_py's ``timestamps.txt``), or a rate
-(``t_k = k / rate_hz``). Event times are relative to the first frame (its
-original time is in the recording's metadata).
+Timestamps: the container's (``CAP_PROP_POS_MSEC`` per frame, read from
+its packets without decoding them when their times increase, else by a
+decoding pass), a text file (one time in seconds per line, as esim_py's
+``timestamps.txt``), or a rate (``t_k = k / rate_hz``). Event times are
+relative to the first frame (its original time is in the recording's
+metadata). A video is decoded once, during the run; 8-bit grey streams
+(e.g. FFV1 grey) are read without OpenCV's conversion to BGR when that gives
+the same frame 0.
 
 Temporal upsampling (``upsample = k`` samples per frame interval):
 
@@ -27,7 +31,15 @@ Temporal upsampling (``upsample = k`` samples per frame interval):
   times are those without upsampling (a linear function sampled more densely
   crosses its levels at the same instants); the sub-frames are the time base
   of the time-dependent sensor effects (photoreceptor low-pass), which then
-  see a smoother input.
+  see a smoother input. Without sensor effects the converter does not build
+  these sub-frames: :meth:`FramesRenderer.log_interval` hands it the two log
+  frames and the fractions, and its kernel
+  (:func:`evedge.sim._events._log_interval`) evaluates the same expression
+  per changing pixel and decides on it directly, where the image path takes
+  ``log(exp(L) - eps + eps)``: float times may differ in their last bits
+  (about 1e-15 s); the stored microsecond and nanosecond times were the
+  same bytes in every test (``tests/sim/test_frames.py``). Same seed, same
+  bytes, and chunked = one-shot, hold as before.
 - ``"flow"``: sub-frames from dense optical flow (OpenCV Farneback [2]_)
   between the two frames: at fraction ``a`` of the interval,
   ``I_a(x) = (1 - a) F0(x - a f(x)) + a F1(x + (1 - a) f(x))`` with ``f`` the
@@ -277,20 +289,64 @@ def _times(n, source, container=None, timestamps=None, rate_hz=None):
     return container
 
 
+def _fourcc(cap, cv2) -> bytes:
+    """The decoder's pixel format as its four characters (``b"Y800"``: 8-bit grey), ``b""`` when unknown."""
+    code = cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT)
+    return int(code).to_bytes(4, "little") if 0 < code < 2 ** 32 else b""
+
+
+def _container_times(path, cv2):
+    """The container's frame times (s) from its packets, without decoding (OpenCV's raw stream mode), or None.
+
+    ``CAP_PROP_FORMAT = -1`` makes ``grab`` read packets only, 30-60 times
+    cheaper than decoding them (measured on FFV1, MPEG-4 part 2 and MJPEG,
+    which give the same times both ways). Used only when OpenCV accepts the
+    mode and the times strictly increase (packets come in decoding order: a
+    stream that reorders frames, or without times, fails this check); None
+    sends the caller to the decoding pass.
+    """
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened() or not cap.set(cv2.CAP_PROP_FORMAT, -1):
+            return None
+        out = []
+        while cap.grab():
+            out.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
+    finally:
+        cap.release()
+    t = np.array(out)
+    if t.shape[0] < 2 or not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+        return None
+    return t
+
+
 class _VideoReader:
-    def __init__(self, path):
+    """Frame ``k`` of a video (sequential decoding; a backward request reopens the file).
+
+    ``grey``: the decoder gives 8-bit grey frames (``Y800``) and OpenCV's
+    unconverted frame 0 equals the BGR-converted one's grey (checked by
+    :func:`open_video`): frames are then read with ``CAP_PROP_CONVERT_RGB = 0``,
+    which skips the grey-to-BGR-to-grey round trip. What comes back is still
+    checked (:func:`_grey` takes 1, 3 or 4 channels; the frame's size is
+    checked by :meth:`FrameSource.frame`).
+    """
+
+    def __init__(self, path, grey=False):
         import cv2
 
         self.path = path
         self.cap = None
         self.next = 0
         self.cv2 = cv2
+        self.grey = bool(grey)
 
     def __call__(self, k):
         if self.cap is None or k < self.next:
             if self.cap is not None:
                 self.cap.release()
             self.cap = self.cv2.VideoCapture(str(self.path))
+            if self.grey:
+                self.cap.set(self.cv2.CAP_PROP_CONVERT_RGB, 0)
             self.next = 0
         try:
             while self.next < k:
@@ -351,24 +407,40 @@ def open_video(path, *, timestamps=None, rate_hz=None) -> FrameSource:
             declared = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
             if declared != (0, 0):
                 _check_size(*declared, str(path))
-            container = []
-            while cap.grab():  # one pass without decoding: the frame count and the container's times
-                container.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
+            # the frame count and the container's times: from the packets (no decoding) when they are reliable
+            container = _container_times(path, cv2)
+            if container is None:
+                container = []
+                while cap.grab():  # a pass that decodes every frame
+                    container.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
+                container = np.array(container)
         finally:
             cap.release()
-        cap = cv2.VideoCapture(str(path))  # a second pass decodes the first frame (its size)
+        cap = cv2.VideoCapture(str(path))  # decodes the first frame (its size)
         try:
             ok, first = cap.read()
+            grey_codec = ok and _fourcc(cap, cv2) == b"Y800"
         finally:
             cap.release()
+        raw = None
+        if grey_codec:  # frame 0 without OpenCV's conversion to BGR: used for all frames if it gives the same grey
+            cap = cv2.VideoCapture(str(path))
+            try:
+                if cap.set(cv2.CAP_PROP_CONVERT_RGB, 0):
+                    ok_raw, raw = cap.read()
+                    raw = raw if ok_raw else None
+            finally:
+                cap.release()
     except cv2.error as err:
         raise FramesError(f"{path}: OpenCV cannot read it as a video: {str(err).strip()}") from None
-    if not container or not ok:
+    if not len(container) or not ok:
         raise FramesError(f"{path}: no decodable frame")
     _check_size(first.shape[1], first.shape[0], str(path))
     img = _grey(first, f"{path}: frame 0")
-    t = _times(len(container), str(path), np.array(container), timestamps, rate_hz)
-    return FrameSource(t, img.shape[1], img.shape[0], str(path), _VideoReader(path))
+    grey = (raw is not None and raw.ndim == 2 and raw.dtype == np.uint8 and raw.shape == img.shape
+            and np.array_equal(_grey(raw, f"{path}: frame 0"), img))
+    t = _times(len(container), str(path), container, timestamps, rate_hz)
+    return FrameSource(t, img.shape[1], img.shape[0], str(path), _VideoReader(path, grey))
 
 
 def open_frames_folder(path, *, timestamps=None, rate_hz=None) -> FrameSource:
@@ -660,6 +732,44 @@ class FramesRenderer:
             self._next = (float(tk), k, j)
             self._buf[r] = self.intensity(float(tk))
         return times, self._buf[:n]
+
+    def log_interval(self, t_s: float, until_s: float):
+        """The next samples after ``t_s`` inside its frame interval, as log frames and fractions (no images).
+
+        For ``"log"`` upsampling: ``(l0, l1, a_prev, alphas, times_s)``, the
+        flat log frames at the ends of the interval of sample ``t_s``, its
+        fraction ``a_prev``, and the following samples' fractions and times
+        (up to the interval's end, the last one the first at or after
+        ``until_s``): the samples :meth:`samples` gives, whose log intensity
+        is ``(1 - a) * l0 + a * l1``. None when that does not apply (no log
+        upsampling, ``t_s`` not a sample time, or sample times that tie
+        across a frame); the converter then takes :meth:`samples`.
+        """
+        if self.upsample == 1 or self.interpolation != "log":
+            return None
+        t = float(t_s)
+        kp, jp = self._locate(t)
+        if jp is None or kp >= len(self._t) - 1:
+            return None
+        k, j = kp, jp
+        times, alphas = [], []
+        while True:  # the successors of sample (k, j), as in samples()
+            j += 1
+            if j == self.upsample:
+                k, j = k + 1, 0
+            tj = self._sample_time(k, j)
+            if tj <= t:
+                if k > kp:
+                    return None  # a sub-sample time ties the frame's: the general path
+                continue
+            t = tj
+            times.append(t)
+            alphas.append(1.0 if k > kp else j / self.upsample)
+            if k > kp or t >= until_s:
+                break
+        self._load_pair(kp)
+        l0, l1 = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in self._pair)
+        return l0, l1, jp / self.upsample, np.array(alphas), np.array(times)
 
     def flow(self, t_s: float):
         return None

@@ -88,3 +88,14 @@ def test_a_failing_cell_is_reported_and_the_others_run():
     rows, failures = run_grid(ts, workers=0, progress=False)
     assert len(rows) == 1 and len(failures) == 1
     assert failures[0][0].kind == "cubes" and "unknown cell kind" in str(failures[0][1])
+
+
+def test_buffer_parameters_reach_the_proposed_detector():
+    from evedge.detector.buffer import BufferParams
+
+    cell = GRID[:1]
+    paper = run_cell(tasks(cell, 32, 24, 3, [("intra", "intra", None)])[0])
+    same = run_cell(tasks(cell, 32, 24, 3, [("intra", "intra", None, BufferParams())])[0])
+    longer = run_cell(tasks(cell, 32, 24, 3, [("intra", "intra", None, BufferParams(tau_min_us=50_000))])[0])
+    assert _strip_cpu([same]) == _strip_cpu([paper])
+    assert longer["intra_noise"] > paper["intra_noise"]  # a longer support window lets more noise through

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from evedge.sim import ConverterParams, parse_scene, render_frame
+from evedge.sim import ConverterParams, EventConverter, parse_scene, render_frame
 from evedge.sim.frames import (FramesError, FramesRenderer, frames_from_arrays, open_frames_folder, open_video,
                                read_timestamps, simulate_frames)
 
@@ -410,6 +410,10 @@ def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
     elif case == "resize":
         kw = dict(resize=(80, 36))
     runs = {}
+    steps = []  # log upsampling takes the log-interval kernel (no sub-frame images)
+    step = EventConverter._log_interval_step
+    monkeypatch.setattr(EventConverter, "_log_interval_step", lambda self, got: steps.append(step(self, got))
+                        or steps[-1])
     for mode in ("batched", "per_frame"):
         if mode == "per_frame":
             monkeypatch.setattr(FramesRenderer, "samples", None)  # the converter then steps frame by frame
@@ -418,6 +422,9 @@ def test_batches_of_frames_give_the_events_of_frame_by_frame(case, monkeypatch):
                                                   chunk_s=chunk_s, **kw)
     ref = runs["per_frame", 0.05]
     assert ref.events.shape[0] > 1200  # one batch at chunk_s = 0.05: more than the first buffers (1024)
+    # the log-interval kernel skips log(exp(L) - eps + eps): the same bytes here (the stored us and ns times hide
+    # the last-bit differences of the float times; see _log_interval)
+    assert any(steps) == (kw.get("upsample", 1) > 1 and kw.get("interpolation", "log") == "log"), case
     for key, rec in runs.items():
         assert rec.events.tobytes() == ref.events.tobytes(), key
         assert rec.truth.tobytes() == ref.truth.tobytes(), key
@@ -448,6 +455,11 @@ def test_non_finite_frame_inside_a_batch_is_named():
     frames[25, 0, 0] = np.nan
     with pytest.raises(ValueError, match=r"clip: the sample at t = 0.017 s has 2 non-finite pixel values"):
         simulate_frames(frames_from_arrays(frames, t, name="clip"), progress=False)
+    # log upsampling: the log-interval kernel stops at the interval and the image path names its first sample
+    frames[17, 3, 4] = 0.5
+    frames[25, 0, 0] = 0.5
+    with pytest.raises(ValueError, match=r"clip: the sample at t = 0.016333333333333335 s has 1 non-finite pixel"):
+        simulate_frames(frames_from_arrays(frames, t, name="clip"), upsample=3, progress=False)
 
 
 def test_gen4_frames_memory_is_bounded():
@@ -472,3 +484,76 @@ def test_gen4_frames_memory_is_bounded():
         extra.append((peak - 2 * (rec.events.nbytes + rec.truth.nbytes)) / 2**20)
     assert max(extra) < 200, extra
     assert abs(extra[1] - extra[0]) < 25, extra
+
+
+@pytest.mark.parametrize("fourcc, suffix", [("FFV1", ".avi"), ("MJPG", ".avi"), ("mp4v", ".mp4")])
+def test_video_opened_in_one_decoding(tmp_path, monkeypatch, fourcc, suffix):
+    """The container's times from its packets (no decoding) equal a decoding pass's; grey streams read unconverted."""
+    import cv2
+
+    import evedge.sim.frames as fr
+
+    frames, _ = _rendered_frames(10)
+    u8 = np.rint(frames * 255).astype(np.uint8)
+    path = tmp_path / f"v{suffix}"
+    wr = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 250.0, (u8.shape[2], u8.shape[1]), isColor=False)
+    assert wr.isOpened()
+    for f in u8:
+        wr.write(f)
+    wr.release()
+    decoded = []
+    cap = cv2.VideoCapture(str(path))
+    while cap.grab():
+        decoded.append(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e-3)
+    cap.release()
+    packets = fr._container_times(path, cv2)
+    assert packets is not None and packets.tobytes() == np.array(decoded).tobytes()
+    fast = open_video(path)
+    # the fallback (no usable packet times) gives the same source, and the unconverted grey the same frames
+    monkeypatch.setattr(fr, "_container_times", lambda p, c: None)
+    slow = open_video(path)
+    assert fast.times_s.tobytes() == slow.times_s.tobytes() and len(fast) == 10
+    assert fast._reader.grey == (fourcc == "FFV1")  # FFV1 grey is Y800; the others decode to YUV 4:2:0
+    slow._reader.grey = False
+    for k in range(10):
+        assert fast.frame(k).tobytes() == slow.frame(k).tobytes()
+    if fourcc == "FFV1":  # lossless: the frames as written
+        assert fast.frame(3).tobytes() == (u8[3] / 255.0).tobytes()
+    fast.close(), slow.close()
+
+
+def test_a_video_cut_mid_stream_is_named(tmp_path):
+    frames, _ = _rendered_frames(12)
+    _write_video(tmp_path / "v.avi", np.rint(frames * 255).astype(np.uint8), 250.0)
+    data = (tmp_path / "v.avi").read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[:len(data) * 2 // 3])
+    try:
+        rec = simulate_frames(open_video(tmp_path / "cut.avi"), progress=False)
+    except FramesError as err:
+        assert "cut.avi" in str(err)
+    else:  # the complete frames before the cut
+        assert 2 <= rec.metadata["n_frames"] < 12
+
+
+def test_log_interval_steps_mixed_with_image_batches(monkeypatch):
+    """When the renderer declines a log interval (here: from a sample inside a frame interval, after a log step
+    that stopped there at a chunk's end), the image path resumes from the present sample rebuilt from the log
+    frames: the same bytes as frame by frame."""
+    frames, t = _rendered_frames(40, rate_hz=2000.0, size=(40, 30))
+    params = ConverterParams(contrast_pos=0.15, contrast_neg=0.17, refractory_us=50.0)
+    ref = simulate_frames(frames_from_arrays(frames, t), params, upsample=4, progress=False, chunk_s=0.00107)
+    calls = []
+    real = FramesRenderer.log_interval
+
+    def at_frames_only(self, t_s, until_s):
+        inside = t_s not in set(t - t[0])
+        calls.append(inside)
+        return None if inside else real(self, t_s, until_s)
+
+    monkeypatch.setattr(FramesRenderer, "log_interval", at_frames_only)
+    mixed = simulate_frames(frames_from_arrays(frames, t), params, upsample=4, progress=False, chunk_s=0.00107)
+    assert sum(calls) > 10 and not all(calls) and ref.events.shape[0] > 500
+    assert mixed.events.tobytes() == ref.events.tobytes() and mixed.truth.tobytes() == ref.truth.tobytes()
+    monkeypatch.setattr(FramesRenderer, "samples", None)  # frame by frame
+    per_frame = simulate_frames(frames_from_arrays(frames, t), params, upsample=4, progress=False, chunk_s=0.00107)
+    assert per_frame.events.tobytes() == ref.events.tobytes() and per_frame.truth.tobytes() == ref.truth.tobytes()
