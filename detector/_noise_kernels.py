@@ -24,8 +24,7 @@ array is None: numba then compiles none of the rules' code (as
 import math
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 #: Slot of ``newer_share_max`` in the ``noise`` array.
 _NEWER = 0
@@ -35,16 +34,6 @@ _BURST_SPAN = 1
 _AGREE = 2
 #: Length of the ``noise`` array.
 N_NOISE = 3
-def _noise_slot(noise, i):
-    """``noise[i]``, or 0.0 (off) when ``noise`` is None (every rule off); for the kernels (:func:`overload`)."""
-    return 0.0 if noise is None else float(noise[i])
-
-
-@overload(_noise_slot, inline="always")
-def _noise_slot_nb(noise, i):
-    if isinstance(noise, types.NoneType):
-        return lambda noise, i: 0.0
-    return lambda noise, i: noise[i]
 
 
 #: Inlier pixels with an estimate needed before ``lifetime_agreement`` judges (fewer: the event is kept).
