@@ -52,6 +52,13 @@ class Case:
 # ---------------------------------------------------------------- seed files
 
 
+def _write_files(d: Path, files: dict) -> None:
+    """Write ``files`` (relative path -> bytes) under the folder ``d``, making sub-folders."""
+    for rel, content in files.items():
+        (d / rel).parent.mkdir(parents=True, exist_ok=True)
+        (d / rel).write_bytes(content)
+
+
 def small_recording(n: int = 2000, seed: int = 0, *, frames: bool = True, truth: bool = True):
     """A 240x180 recording with float frames, edge maps and simulator-like truth."""
     from evedge.events import Frames, Recording, SensorSize, make_events
@@ -755,9 +762,7 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
             base[name], what = mu.mutate(base[name], rng, mu.TEXT_MUTATORS)
 
         def build(d: Path, files=base) -> Path:
-            for rel, content in files.items():
-                (d / rel).parent.mkdir(parents=True, exist_ok=True)
-                (d / rel).write_bytes(content)
+            _write_files(d, files)
             return d
 
         return Case(case_id, target, f"{name}:{what}", build, root)
@@ -846,9 +851,7 @@ def _one(target: str, case_id: str, rng, root: Path, seeds: Seeds) -> Case:
             base[name], what = mu.mutate(base[name], rng, mu.TEXT_MUTATORS)
 
         def build(d: Path, files=base) -> Path:
-            for rel, content in files.items():
-                (d / rel).parent.mkdir(parents=True, exist_ok=True)
-                (d / rel).write_bytes(content)
+            _write_files(d, files)
             (d / "images").mkdir(exist_ok=True)
             return d / "images"
 
