@@ -4,7 +4,8 @@ Same steps, parameters, random draws and adaptive trial count as
 :func:`evedge.detector._intra_kernels._intra_stream` (SAE update with burst
 grouping, 5x5 window gather, 2-means, RANSAC with the intra-pixel residual and
 the skimage-style stopping rule, fallback to all points, least-squares refit
-with a free offset), written as one function with none of the project's
+with a free offset; least squares first, ``ls_first``, as the project's default),
+written as one function with none of the project's
 constraints:
 
 * no byte-exactness: float sums are free to be reordered (the tie-breaking cost
@@ -36,7 +37,7 @@ _NEVER = np.iinfo(np.int64).min
 
 @njit(cache=True, fastmath=False)
 def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, thr_us, thr_rel, max_trials,
-                 stop_prob, min_points, min_inliers, burst, seed, out_lt, out_valid):
+                 stop_prob, min_points, min_inliers, burst, seed, out_lt, out_valid, ls_first):
     """Lifetimes of time-sorted events (per-polarity SAE ``sae``, burst state ``prev_t/prev_lt``)."""
     nn = (2 * half + 1) ** 2
     dx = np.empty(nn)
@@ -122,6 +123,43 @@ def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, t
             best_s = 0.0
             best_thr = 0.0
             trials = max_trials
+            # ---- least squares first (ls_first): the sums over the whole cluster, the plane through
+            # the event; every residual within ls_first thresholds: the refit on all points, no trial
+            full = False
+            s1 = 1.0 + m
+            sx = 0.0
+            sy = 0.0
+            st = 0.0
+            sxx = 0.0
+            sxy = 0.0
+            syy = 0.0
+            sxt = 0.0
+            syt = 0.0
+            if ls_first > 0.0:
+                for q in range(m):
+                    sx += kx[q]
+                    sy += ky[q]
+                    st += kt[q]
+                    sxx += kx[q] * kx[q]
+                    sxy += kx[q] * ky[q]
+                    syy += ky[q] * ky[q]
+                    sxt += kx[q] * kt[q]
+                    syt += ky[q] * kt[q]
+                det = sxx * syy - sxy * sxy
+                if det > 1e-9 * (sxx * syy):
+                    a = (sxt * syy - syt * sxy) / det
+                    b = (syt * sxx - sxt * sxy) / det
+                    slack = delta * (abs(a) + abs(b))
+                    tight = ls_first * (thr_us + thr_rel * math.sqrt(a * a + b * b))
+                    worst = 0.0
+                    for q in range(m):
+                        worst = max(worst, abs(kt[q] - a * kx[q] - b * ky[q]) - slack)
+                    if worst <= tight and math.isfinite(a) and math.isfinite(b):
+                        full = True
+                        best_n = m + 1
+                        best_a = a
+                        best_b = b
+                        trials = 0
             um = np.uint64(m)
             um1 = np.uint64(m - 1)
             kk = 0
@@ -162,30 +200,31 @@ def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, t
                 continue
             if best_n < min_inliers:
                 break
-            # ---- refit with a free offset on the inliers (current event included)
-            s1 = 1.0
-            sx = 0.0
-            sy = 0.0
-            st = 0.0
-            sxx = 0.0
-            sxy = 0.0
-            syy = 0.0
-            sxt = 0.0
-            syt = 0.0
-            for q in range(m):
-                r = max(abs(kt[q] - best_a * kx[q] - best_b * ky[q]) - best_s, 0.0)
-                wq = 1.0 if r <= best_thr else 0.0
-                xq = kx[q] * wq
-                yq = ky[q] * wq
-                s1 += wq
-                sx += xq
-                sy += yq
-                st += kt[q] * wq
-                sxx += xq * kx[q]
-                sxy += xq * ky[q]
-                syy += yq * ky[q]
-                sxt += xq * kt[q]
-                syt += yq * kt[q]
+            # ---- refit with a free offset on the inliers (current event included; all: the sums above)
+            if not full:
+                s1 = 1.0
+                sx = 0.0
+                sy = 0.0
+                st = 0.0
+                sxx = 0.0
+                sxy = 0.0
+                syy = 0.0
+                sxt = 0.0
+                syt = 0.0
+                for q in range(m):
+                    r = max(abs(kt[q] - best_a * kx[q] - best_b * ky[q]) - best_s, 0.0)
+                    wq = 1.0 if r <= best_thr else 0.0
+                    xq = kx[q] * wq
+                    yq = ky[q] * wq
+                    s1 += wq
+                    sx += xq
+                    sy += yq
+                    st += kt[q] * wq
+                    sxx += xq * kx[q]
+                    sxy += xq * ky[q]
+                    syy += yq * ky[q]
+                    sxt += xq * kt[q]
+                    syt += yq * kt[q]
             sxx -= sx * sx / s1
             sxy -= sx * sy / s1
             syy -= sy * sy / s1
@@ -213,8 +252,12 @@ def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, t
 
 
 def bound_lifetimes(events, width, height, half=2, delta=0.25, thr_us=50.0, thr_rel=0.2, max_trials=20,
-                    stop_prob=0.999, min_points=5, min_inliers=5, burst=1.0, seed=0):
+                    stop_prob=0.999, min_points=5, min_inliers=5, burst=1.0, seed=0, ls_first=None):
     """``(lifetime_us, valid)`` of ``events`` by :func:`bound_stream` (fresh state; the IntraParams defaults)."""
+    if ls_first is None:
+        from evedge.detector.intra import IntraParams
+
+        ls_first = IntraParams().ls_first
     x = np.ascontiguousarray(events["x"], dtype=np.int64)
     y = np.ascontiguousarray(events["y"], dtype=np.int64)
     t = np.ascontiguousarray(events["t"], dtype=np.int64)
@@ -227,5 +270,5 @@ def bound_lifetimes(events, width, height, half=2, delta=0.25, thr_us=50.0, thr_
     lt = np.empty(n)
     valid = np.empty(n, np.bool_)
     bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, thr_us, thr_rel, max_trials,
-                 stop_prob, min_points, min_inliers, burst, seed, lt, valid)
+                 stop_prob, min_points, min_inliers, burst, seed, lt, valid, float(ls_first))
     return lt, valid

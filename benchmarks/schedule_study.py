@@ -72,7 +72,8 @@ def capture(events, size, pr: IntraParams, limit=None):
                       pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
                       pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
                       off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
-                      pr.stale_fraction, _NEVER, 0.0, noise_args(pr), lt[k:], vx[k:], vy[k:], valid[k:], wf, wi)
+                      pr.stale_fraction, _NEVER, 0.0, noise_args(pr), lt[k:], vx[k:], vy[k:], valid[k:], wf, wi,
+                      0.0)
         nn = int(np.argmax(wf[0] == SENT)) if np.any(wf[0] == SENT) else wf.shape[1]
         lab = wi[1, :nn] == 1
         m = int(lab.sum())

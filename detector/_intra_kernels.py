@@ -4,6 +4,12 @@ Points of a window are past events in coordinates local to the current event:
 ``dx, dy`` (pixel offsets) and ``dt`` (time minus the current time, us). The
 current event itself is the origin and is not stored among them.
 
+Least squares first (``ls_first > 0``, the one speed change that changes results, see
+:mod:`evedge.detector.intra`, "schedule"): before the trials, the least-squares plane
+through the current event on the compacted cluster; every residual within
+``ls_first`` thresholds: the refit on all points from the same sums, no trial. A
+window that fails the check runs the trials below unchanged (same bytes as at 0).
+
 Speed (the per-event work of the stream kernel; results are unchanged by all of it):
 
 * the per-event fit (2-means + RANSAC + refit) is one function, :func:`_fit_points`,
@@ -217,7 +223,7 @@ def _jump_ok(g1, g2, forced, gap_ratio, jump_check):
 
 @njit(cache=True)
 def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_prob, log_fail, min_points,
-                min_inliers, intercept, fallback, gap_ratio, on_plane, jump_check, noise):
+                min_inliers, intercept, fallback, gap_ratio, on_plane, jump_check, noise, ls_first):
     """2-means, then RANSAC on the current event's cluster, then a least-squares refit.
 
     The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (and ``wi[_IT, :n]`` when
@@ -252,6 +258,12 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
     with ``intercept`` with a free time offset (the plane's slopes are what we
     need; the offset only absorbs the current event's own timing noise). A flat
     plane (``a = b = 0``) or a non-finite one is no estimate.
+
+    **Least squares first** (``ls_first > 0``): before the trials, the least-squares
+    plane through the current event on the whole cluster; when every point's residual
+    is within ``ls_first`` times its inlier threshold the trials are skipped and the
+    refit runs on all points (the same sums, same order, as the refit of a winner
+    with every point an inlier).
 
     ``gap_ratio`` and ``on_plane`` may be None, the same as 0 (off): numba then
     prunes their branches when it compiles, so a run without these options
@@ -351,6 +363,56 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         best_slack = 0.0
         best_thr = 0.0
         trials = max_trials
+        # least-squares sums over the whole cluster; the current event (origin) adds 1 to the count only
+        s1 = 1.0
+        sx = 0.0
+        sy = 0.0
+        st = 0.0
+        sxx = 0.0
+        sxy = 0.0
+        syy = 0.0
+        sxt = 0.0
+        syt = 0.0
+        full = False
+        if ls_first > 0.0:
+            # least squares first: the plane through the current event fitted to the whole cluster;
+            # when every point is its inlier (within ls_first times the threshold) no hypothesis can
+            # have more, and the refit on all points is the result: no trial (same sums, same
+            # order as the refit below)
+            for q in range(m):
+                xq = wf[_KX, q]
+                yq = wf[_KY, q]
+                tq = wf[_KT, q]
+                s1 += 1.0
+                sx += xq
+                sy += yq
+                st += tq
+                sxx += xq * xq
+                sxy += xq * yq
+                syy += yq * yq
+                sxt += xq * tq
+                syt += yq * tq
+            det0 = sxx * syy - sxy * sxy
+            if det0 > 1e-9 * (sxx * syy):
+                a = (sxt * syy - syt * sxy) / det0
+                b = (syt * sxx - sxt * sxy) / det0
+                slack = delta * (abs(a) + abs(b))
+                thr = thr_us + thr_rel * math.sqrt(a * a + b * b)
+                tight = ls_first * thr
+                cnt = 1
+                for q in range(m):
+                    r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
+                    r = max(r, 0.0)
+                    cnt += 1 if r <= tight else 0
+                if cnt == m + 1 and math.isfinite(a) and math.isfinite(b):
+                    full = True
+                    best_n = cnt
+                    best_cost = 0.0
+                    best_a = a
+                    best_b = b
+                    best_slack = slack
+                    best_thr = thr
+                    trials = 0
         k = 0
         um = np.uint64(m)
         um1 = np.uint64(m - 1)
@@ -430,40 +492,47 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
             nin = -1
             continue
         nin = best_n
-        # the winner's inliers, recomputed exactly as in its trial
-        for q in range(m):
-            r = abs(wf[_KT, q] - (best_a * wf[_KX, q] + best_b * wf[_KY, q])) - best_slack
-            r = max(r, 0.0)
-            inl = 1 if r <= best_thr else 0
-            wi[_KIN, q] = inl
-            wi[_INL, wi[_IDX, q]] = inl
+        if full:
+            # every point is an inlier; the sums above are the refit's
+            for q in range(m):
+                wi[_KIN, q] = 1
+                wi[_INL, wi[_IDX, q]] = 1
+        else:
+            # the winner's inliers, recomputed exactly as in its trial
+            for q in range(m):
+                r = abs(wf[_KT, q] - (best_a * wf[_KX, q] + best_b * wf[_KY, q])) - best_slack
+                r = max(r, 0.0)
+                inl = 1 if r <= best_thr else 0
+                wi[_KIN, q] = inl
+                wi[_INL, wi[_IDX, q]] = inl
         if best_n < min_inliers:
             return False, np.nan, np.nan
-        # sums over the inliers; the current event (origin) adds 1 to the count only
-        s1 = 1.0
-        sx = 0.0
-        sy = 0.0
-        st = 0.0
-        sxx = 0.0
-        sxy = 0.0
-        syy = 0.0
-        sxt = 0.0
-        syt = 0.0
-        for q in range(m):
-            # branch-free: a weight of 0 or 1 (adding 0.0 changes no sum)
-            wq = 1.0 if wi[_KIN, q] == 1 else 0.0
-            xq = wf[_KX, q] * wq
-            yq = wf[_KY, q] * wq
-            tq = wf[_KT, q] * wq
-            s1 += wq
-            sx += xq
-            sy += yq
-            st += tq
-            sxx += xq * wf[_KX, q]
-            sxy += xq * wf[_KY, q]
-            syy += yq * wf[_KY, q]
-            sxt += xq * wf[_KT, q]
-            syt += yq * wf[_KT, q]
+        if not full:
+            # sums over the inliers; the current event (origin) adds 1 to the count only
+            s1 = 1.0
+            sx = 0.0
+            sy = 0.0
+            st = 0.0
+            sxx = 0.0
+            sxy = 0.0
+            syy = 0.0
+            sxt = 0.0
+            syt = 0.0
+            for q in range(m):
+                # branch-free: a weight of 0 or 1 (adding 0.0 changes no sum)
+                wq = 1.0 if wi[_KIN, q] == 1 else 0.0
+                xq = wf[_KX, q] * wq
+                yq = wf[_KY, q] * wq
+                tq = wf[_KT, q] * wq
+                s1 += wq
+                sx += xq
+                sy += yq
+                st += tq
+                sxx += xq * wf[_KX, q]
+                sxy += xq * wf[_KY, q]
+                syy += yq * wf[_KY, q]
+                sxt += xq * wf[_KT, q]
+                syt += yq * wf[_KT, q]
         on = True
         if on_plane is not None:
             on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt,
@@ -603,7 +672,7 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
-                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi):
+                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -694,7 +763,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 big = max(big, abs(wi[_IT, i]))
             ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
                                    thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
-                                   fallback, gap_ratio, on_plane, jump_check, noise)
+                                   fallback, gap_ratio, on_plane, jump_check, noise, ls_first)
             if not trial:
                 break
             trial = False
@@ -743,7 +812,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 @njit(cache=True)
 def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                  min_inliers, intercept, fallback, out_a, out_b, out_ok, out_inl, gap_ratio, on_plane, jump_check,
-                 noise):
+                 noise, ls_first):
     """:func:`_fit_points` on flat windows ``win`` (k * side * side, NaN = never fired).
 
     Window ``w`` uses the random stream of global index ``g0 + w``. ``out_inl`` gets the
@@ -774,7 +843,7 @@ def _fit_windows(win, side, seed, g0, delta, thr_us, thr_rel, max_trials, stop_p
         # float times: 2-means sums them in float64 (exact=False)
         ok, a, b = _fit_points(wf, wi, n, False, _event_key(seed, g0 + w), delta, thr_us, thr_rel,
                                max_trials, stop_prob, log_fail, min_points, min_inliers, intercept, fallback,
-                               gap_ratio, on_plane, jump_check, noise)
+                               gap_ratio, on_plane, jump_check, noise, ls_first)
         out_ok[w] = ok
         out_a[w] = a
         out_b[w] = b

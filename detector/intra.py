@@ -290,6 +290,45 @@ of 96.0 % (linkage alone 89.4 %, the check alone 84.5 %), with medians 6.7 /
 91.8 %, with ``startup_reach`` alone 95.2 %). This is why the preset is not the
 default.
 
+Schedule (``ls_first``, issue 12; default 0.5, 0 = the paper's RANSAC alone). Least
+squares first: the plane through the current event is fitted by least squares to the
+whole kept cluster (after 2-means, or on all points in the fallback); when every
+point's intra-pixel residual is within ``ls_first`` times that plane's inlier
+threshold, every point is an inlier of a plane of RANSAC's model class, so no
+hypothesis can have more, and the result is the refit on all the points (the
+sums, in the same order, are the refit's): no trial runs. Otherwise RANSAC runs
+as before, with the same draws (a window that fails the check gets the same bytes
+as with ``ls_first = 0``). The margin matters: at 1 (every point an inlier, just)
+the least-squares plane, whose relative threshold grows with its slope, also
+absorbs points RANSAC's winner leaves out, and on the quick grid's noisy cells the
+median error rose 5.39 -> 5.71 % (defaults); at 0.5 it is 5.44 %. Windows captured
+from the stream kernel (``benchmarks/schedule_study.py``, first 30,000 kept
+events; 2026-12-02): the least-squares plane has every point an inlier in 16.5 %
+of the clusters on the real ``stripes.mat`` and 81.7 % on the simulated
+``shapes_translation``; today's RANSAC runs 11.1 / 3.3 trials per cluster there,
+finds its final best at trial 4.8 / 1.9 and hits the cap of 20 in 20.4 / 2.8 % of
+them; in the clusters with full consensus it ran 2.8 / 1.7 trials and its winner
+had full consensus too in 80.6 / 93.0 %. Seeding RANSAC with the least-squares
+plane as hypothesis 0 (10.5 / 1.9 trials) and LO-RANSAC (a least-squares refit
+after every new best, scored as a further hypothesis: 10.3 / 1.85 trials) change
+little: on ``stripes.mat`` the best plane's inlier share is ~0.7 (6.6 of 9.1
+points), and at that share the 0.999 bound needs ~11 trials whoever finds the
+plane; they were not built. Measured (``benchmarks/stop_rule.py --schedule``,
+2026-12-02, load 2.2-2.7, estimator CPU per kept event best of 5 alternated,
+accuracy against the simulator's truth with the buffer; 0 -> 0.5): simulated
+``shapes_translation`` 454 -> 399 ns (1.14x), median error 6.08 -> 6.11 %,
+> 2x off 5.91 -> 5.95 %, estimated 98.83 -> 98.88 %; ``stripes`` (1 s) 426 -> 361
+ns (1.18x), 2.03 -> 2.03 %, 3.05 -> 3.10 %, 99.14 -> 99.14 %; ``shapes_rotation``
+387 -> 349 ns (1.11x), 6.30 -> 6.35 %, 7.56 -> 7.62 %, 96.22 -> 96.32 %; the real
+``stripes.mat`` 669 -> 674 ns (no gain), estimated 96.07 -> 96.12 %, medians 6.91 /
+12.14 ms either way (99.2 % of the estimates unchanged). Quick grid
+(``benchmarks/robustness_grid.py --quick``, medians over the cells' figures, 0 ->
+0.5; median error / > 2x off / estimated): defaults, noisy cells 5.39 -> 5.44 %,
+6.35 -> 6.36 %, 93.27 -> 93.32 %; clean r < 3 5.29 -> 5.29 %, 3.28 -> 3.23 %, 89.85 ->
+89.89 %; clean r >= 3 unchanged within 0.01; ``--preset robust`` and ``noise``:
+in every group median error and > 2x off at most 0.012 points higher (mostly
+lower), estimated within 0.07 points. 0.25 is as neutral and a little slower on shapes (1.11x).
+
 Randomness: trial ``k`` of the event with global index ``g`` (position in the
 stream since the last :meth:`IntraPixelLifetime.reset`) draws
 ``splitmix64(key + 2k)`` and ``splitmix64(key + 2k + 1)`` with
@@ -369,6 +408,10 @@ from .sae import SurfaceOfActiveEvents
 
 __all__ = ["IntraParams", "IntraPixelLifetime", "NOISE_RULES", "ROBUST", "WindowFit", "estimate_lifetimes",
            "fit_window", "fit_windows", "noise_params", "robust_params"]
+
+#: Kernel arguments (``IntraPixelLifetime.process``'s tuple) passed before the outputs and scratch arrays of
+#: :func:`_intra_stream`; those from this index on (added later) come after them.
+_N_ARGS = 22
 
 _NO_HALO = np.empty(0, np.int8)  # serial: no strip, no decisions to share
 _NO_HALO_LT = np.empty(0)
@@ -480,6 +523,15 @@ class IntraParams:
         factor above or below the median of its inlier pixels' own latest
         estimates (when at least 3 of them have one; fewer: kept). Default 0
         = off (the paper). See the module notes ("noise").
+    ls_first : float
+        In [0, 1]. Least squares first (issue 12): above 0, the plane through
+        the current event is first fitted to the whole kept cluster by least
+        squares; when every point's residual is within ``ls_first`` times that
+        plane's inlier threshold (at 1: every point is an inlier, no hypothesis
+        can have more), the result is the refit on all points and no RANSAC
+        trial runs; otherwise RANSAC as usual. Default 0.5 (accuracy-neutral
+        on the simulator's truth, 1.1-1.2x faster there); 0 = off (the paper's
+        RANSAC, the bytes of before). See the module notes ("schedule").
     """
 
     window_size: int = 5
@@ -505,6 +557,7 @@ class IntraParams:
     newer_share_max: float = 1.0
     burst_span_lifetimes: float = 0.0
     lifetime_agreement: float = 0.0
+    ls_first: float = 0.5
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -536,6 +589,7 @@ class IntraParams:
         check_positive(own, "newer_share_max", self.newer_share_max)
         check_positive(own, "burst_span_lifetimes", self.burst_span_lifetimes, allow_zero=True)
         check_positive(own, "lifetime_agreement", self.lifetime_agreement, allow_zero=True)
+        check_real(own, "ls_first", self.ls_first, 0.0, 1.0, low_open=False, high_open=False)
         if 0 < self.lifetime_agreement <= 1:
             raise ValueError(f"{own}.lifetime_agreement must be 0 (off) or > 1, got {self.lifetime_agreement}")
         if self.newer_share_max > 1:
@@ -549,7 +603,7 @@ class IntraParams:
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
-                     "burst_span_lifetimes", "lifetime_agreement"):
+                     "burst_span_lifetimes", "lifetime_agreement", "ls_first"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
@@ -681,13 +735,14 @@ class IntraPixelLifetime:
                 pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
                 off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
                 pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
-                pr.startup_reach * (pr.window_size // 2), noise_args(pr))  # options off as None: not compiled
+                pr.startup_reach * (pr.window_size // 2), noise_args(pr),  # options off as None: not compiled
+                pr.ls_first)  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
-                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half, *args[3:],
-                          lt, vx, vy, valid, *self._scratch)
+                          self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half,
+                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:])
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
@@ -799,7 +854,7 @@ def fit_windows(windows, params: IntraParams | None = None, *, use_intra: bool =
                  params.inlier_threshold_rel, params.max_trials, params.stop_probability, params.min_points,
                  params.min_inliers, params.refit_intercept, params.fallback_all_points, a, b, ok, inl,
                  off_as_none(params.split_gap_ratio), off_as_none(params.event_on_plane), params.split_jump_check,
-                 noise_args(params))
+                 noise_args(params), params.ls_first)
     return a, b, ok, inl.reshape(k, side, side)
 
 

@@ -116,6 +116,10 @@ def ref_ransac(points, kept, p, seed, g, delta):
         return "degenerate"
     best = None  # (count, cost, a, b, flags)
     trials = p.max_trials
+    if p.ls_first > 0:
+        best = ref_ls_first(points, idx, p, delta)
+        if best is not None:
+            trials = 0  # full consensus: no trial
     k = 0
     while k < trials:
         pi = draw(seed, g, 2 * k) % m
@@ -169,6 +173,27 @@ def ref_ransac(points, kept, p, seed, g, delta):
         if newer > p.newer_share_max * (newer + cnt - 1):
             return "recent points above the plane"
     return True, float(a), float(b), flags
+
+
+def ref_ls_first(points, idx, p, delta):
+    """``ls_first``: the least-squares plane through the current event on the kept points ``idx``.
+
+    Returns RANSAC's best ``(count, cost, a, b, flags)`` with every kept point an inlier when each
+    residual is within ``ls_first`` times that plane's inlier threshold, else None (RANSAC runs).
+    """
+    X = np.array([points[u][:2] for u in idx], float)
+    T = np.array([points[u][2] for u in idx], float)
+    if np.linalg.matrix_rank(X) < 2:
+        return None
+    (a, b), *_ = np.linalg.lstsq(X, T, rcond=None)
+    thr = p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    r = np.maximum(0.0, np.abs(T - X @ [a, b]) - delta * (abs(a) + abs(b)))
+    if not np.all(r <= p.ls_first * thr):
+        return None
+    flags = [False] * len(points)
+    for u in idx:
+        flags[u] = True
+    return len(idx) + 1, 0.0, a, b, flags
 
 
 def ref_newer_count(points, a, b, p, delta):
@@ -305,7 +330,10 @@ def random_windows(n, side, rng):
      IntraParams(event_on_plane=1.0),
      IntraParams(split_gap_ratio=3.0, event_on_plane=1.0),
      IntraParams(split_gap_ratio=3.0, split_jump_check=True),
-     IntraParams(newer_share_max=0.2), IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25)],
+     IntraParams(newer_share_max=0.2), IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25),
+     IntraParams(ls_first=1.0), IntraParams(ls_first=0.5, min_inliers=6),
+     IntraParams(ls_first=1.0, refit_intercept=False, stop_probability=1.0, max_trials=3),
+     IntraParams(ls_first=0.5, split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25)],
 )
 def test_fit_windows_matches_reference(side, params):
     if params.min_inliers > side * side:
@@ -342,7 +370,7 @@ def test_two_means_reference_properties():
 
 @pytest.mark.parametrize("per_polarity", [True, False])
 @pytest.mark.parametrize("rules", [{}, {"split_gap_ratio": 3.0, "split_jump_check": True, "stale_fraction": 0.5,
-                                         "startup_reach": 1.0}])
+                                         "startup_reach": 1.0}, {"ls_first": 1.0}, {"ls_first": 0.0}])
 def test_stream_matches_reference(random_events, per_polarity, rules):
     size = SensorSize(9, 7)
     ev = random_events(400, size.width, size.height, duration_us=30_000, rng=3)
@@ -524,6 +552,10 @@ def test_never_fired_is_not_zero_time():
         (dict(burst_lifetimes=float("inf")), ValueError, "burst_lifetimes"),
         (dict(per_polarity=1), TypeError, "per_polarity"),
         (dict(fallback_all_points=None), TypeError, "fallback_all_points"),
+        (dict(ls_first=-0.1), ValueError, "ls_first"),
+        (dict(ls_first=1.5), ValueError, "ls_first"),
+        (dict(ls_first=float("nan")), ValueError, "ls_first"),
+        (dict(ls_first=True), TypeError, "ls_first"),
     ],
 )
 def test_bad_params(kwargs, exc, field):
@@ -870,3 +902,90 @@ def test_scratch_arrays_in_numpy_equal_the_kernels():
     for nn in (9, 25, 49, 121, 169):
         for a, b in zip(scratch_arrays(nn), _scratch(nn)):
             assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+# ---- least squares first (ls_first) ---------------------------------------------------------
+
+
+def _noisy_plane_window(noise_us):
+    """A 5x5 window on ``dt = 1000 dx + 500 dy`` (the edge's past side) with ``noise_us`` alternating
+    in sign: every 2-point plane through the event is tilted, the least-squares plane is not."""
+    ys, xs = np.mgrid[-2:3, -2:3]
+    w = 1000.0 * xs + 500.0 * ys + noise_us * np.where((xs + 2 * ys) % 2 == 0, 1.0, -1.0)
+    w[1000.0 * xs + 500.0 * ys > 0] = np.nan
+    w[2, 2] = 0.0
+    return w
+
+
+def _kept_cells(w):
+    """The current event and the past cells of its 2-means cluster."""
+    past = ~np.isnan(w)
+    past[2, 2] = False
+    kept = np.zeros(w.shape, bool)
+    kept[past] = ref_two_means(list(w[past] - w[2, 2]))
+    kept[2, 2] = True
+    return kept
+
+
+def _ls_all(w):
+    """Least squares with a free offset on the kept cluster, the current event included (the refit)."""
+    ys, xs = np.mgrid[-2:3, -2:3]
+    f = _kept_cells(w)
+    X = np.column_stack([xs[f], ys[f], np.ones(f.sum())])
+    return np.linalg.lstsq(X, w[f], rcond=None)[0][:2]
+
+
+def test_ls_first_clean_plane_one_fit_no_trial():
+    # plain RANSAC (no intra-pixel slack) with one trial: the answer is the refit on the sample
+    # plane's inliers, seed-dependent since the 100-us noise tilts 2-point planes; least squares
+    # first takes the plane of all the kept points, no trial runs: the same answer for every seed
+    w = _noisy_plane_window(100.0)
+    one = IntraParams(max_trials=1, stop_probability=1.0, ls_first=1.0)
+    fits = [fit_window(w, one, seed=s, use_intra=False) for s in range(12)]
+    assert all(f.ok for f in fits)
+    np.testing.assert_allclose([fits[0].a_us_per_px, fits[0].b_us_per_px], _ls_all(w), rtol=1e-9)
+    assert len({(f.a_us_per_px, f.b_us_per_px) for f in fits}) == 1
+    np.testing.assert_array_equal(fits[0].inliers, _kept_cells(w))  # every kept point is an inlier
+    assert 8 <= fits[0].inliers.sum() < (~np.isnan(w)).sum()
+    plain = [fit_window(w, replace(one, ls_first=0.0), seed=s, use_intra=False) for s in range(12)]
+    assert len({(f.a_us_per_px, f.b_us_per_px) for f in plain if f.ok}) > 1
+    # a noise-free plane: the exact slopes
+    exact = fit_window(_noisy_plane_window(0.0), one)
+    assert exact.a_us_per_px == pytest.approx(1000, rel=1e-12) and exact.b_us_per_px == pytest.approx(500, rel=1e-12)
+
+
+def test_ls_first_margin_and_outlier_fall_back_to_ransac():
+    # residuals of about 100 us against a threshold of 50 + 0.2 * 1118 us: within 1 and 0.5 of it, not 0.1
+    w = _noisy_plane_window(100.0)
+    for frac, fast in ((1.0, True), (0.5, True), (0.1, False)):
+        p = IntraParams(max_trials=1, stop_probability=1.0, ls_first=frac)
+        fits = [fit_window(w, p, seed=s, use_intra=False) for s in range(12)]
+        got = {(f.a_us_per_px, f.b_us_per_px) for f in fits if f.ok}
+        assert (len(got) == 1 and all(f.ok for f in fits)) == fast, frac
+    # an outlier: no full consensus, RANSAC runs (same result as without the option, bytes)
+    w2 = w.copy()
+    w2[0, 1] += 900.0
+    for s in range(8):
+        a = fit_window(w2, IntraParams(ls_first=1.0), seed=s, use_intra=False)
+        b = fit_window(w2, IntraParams(ls_first=0.0), seed=s, use_intra=False)
+        assert (a.a_us_per_px, a.b_us_per_px, a.ok) == (b.a_us_per_px, b.b_us_per_px, b.ok)
+        np.testing.assert_array_equal(a.inliers, b.inliers)
+        assert a.ok and not a.inliers[0, 1]
+
+
+def test_ls_first_stream_chunked_seeds_and_strips(random_events, edge_events):
+    size = SensorSize(16, 12)
+    ev = random_events(3000, size.width, size.height, duration_us=100_000, rng=9)
+    edge, _ = edge_events(16, 12, 300, 0.4, n_edges=3, spacing_px=5, jitter_frac=0.05, subpixel_px=0.25, rng=3)
+    for e in (ev, edge):
+        for frac in (1.0, 0.5):
+            p = IntraParams(ls_first=frac, seed=2)
+            want = estimate_lifetimes(e, size, p)
+            est = IntraPixelLifetime(size, p)
+            assert np.concatenate([est.process(c) for c in np.array_split(e, 11)]).tobytes() == want.tobytes()
+            assert estimate_lifetimes(e, size, p, n_tiles=3).tobytes() == want.tobytes()
+            assert estimate_lifetimes(e, size, p).tobytes() == want.tobytes()
+    # on the clean edge most windows take the least-squares path, which changes some estimates
+    a = estimate_lifetimes(edge, size, IntraParams(ls_first=1.0))
+    b = estimate_lifetimes(edge, size, IntraParams(ls_first=0.0))
+    assert a.tobytes() != b.tobytes() and a["valid"].sum() > 0.8 * a.size
