@@ -25,9 +25,10 @@ unchanged); on the simulated scenes, where the adaptive rule already stops
 early, by at most 1.15x. No stopping rule alone brings the pipeline near
 3.5 M events/s per core, so the default is unchanged (same bytes).
 
-``--schedule``, 2026-12-02 (load 2.2-2.7): ``ls_first`` 0 -> 0.5 (the default since):
-estimator 1.14x on shapes_translation, 1.18x on stripes, 1.11x on shapes_rotation,
-none on stripes.mat (16.5 % of its clusters have full consensus); accuracy within
+``--schedule``, 2026-12-02 (two runs, load 2.2-2.7 and 7.6-8.2): ``ls_first`` 0 -> 0.5
+(the default since): estimator 1.14x on shapes_translation, 1.09-1.18x on stripes,
+1.05-1.11x on shapes_rotation, 0.99-1.09x on stripes.mat (16.5 % of its clusters have
+full consensus); accuracy within
 +0.05 points of median error and > 2x off, coverage within 0.1 points (figures in
 :mod:`evedge.detector.intra`, "schedule"). At 1 the simulated scenes lose up to 0.2
 points (shapes_rotation > 2x off 7.56 -> 7.77 %).
