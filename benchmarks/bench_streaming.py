@@ -2,17 +2,25 @@
 
 The streaming :class:`evedge.detector.Detector` (event buffer -> intra-pixel
 estimator -> edge image, one core) gets the events of each 1 ms of the
-recording as one chunk, then ``advance_to`` the chunk's end (what a driver
-with a clock does). Per chunk we time the processing (wall clock and the
-thread's CPU time) and print the p50 / p99 latencies, the sustained rate
-(events / total processing time) and whether it keeps up: sustained rate above
-the input rate and p99 wall latency under the chunk length.
+recording as one chunk with ``until_us`` = the chunk's end (what a driver with
+a clock does: the buffer also releases what it has decided by then, and the
+released events go through the estimator and the edge image in one call each).
+Per chunk we time the processing (wall clock and the thread's CPU time) and
+print the p50 / p99 latencies, the sustained rate (events / total processing
+time) and whether it keeps up: sustained rate above the input rate and p99
+latency under the chunk length.
 
 Beside them, in the same run, the same events through the same stages in one
-call each (``detect`` + the edge image): streamed / one-shot CPU per event is the
-cost of streaming (per-chunk overhead: checks, copies, kernel calls), and keeping
-up on the CPU (sustained CPU rate above the input's, p99 CPU latency under the
-chunk) is the figure an idle machine would give.
+call each (``detect`` + the edge image), alternated with the streamed passes
+(``--passes``, medians): streamed / one-shot CPU is the cost of streaming
+(per-chunk overhead: checks, copies, one call per stage, and the stages'
+states evicting each other from the caches between chunks). Keeping up on the
+CPU (sustained CPU rate above the input's, p99 CPU latency under the chunk,
+each chunk's least CPU over the passes) is the figure an idle machine would
+give. The fixed cost of a chunk (one-event chunks, median) and the per-event
+rest are printed, with the p99 a pipeline at ``--target-ns`` per event would
+give with today's fixed cost (issue 12 item 1's 3.5 M events/s per core by
+default).
 
 Input: ``stripes.mat`` (DVS128, ~0.28 M events/s) as recorded; the same
 recording with its time axis divided so it arrives at 2 M events/s (the issue's
@@ -28,7 +36,8 @@ a warm-up (compilation, caches) and are not counted. The machine is shared:
 the load average is printed with the figures, CPU latencies are the robust
 ones, wall latencies include preemption by other jobs.
 
-Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000]``.
+Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000] [--passes 3]
+[--target-ns 286]``.
 """
 
 from __future__ import annotations

@@ -13,7 +13,8 @@ image and runs the buffer. :meth:`Ahead.wait`, called before the estimator's
 first chunk, waits for the child; the estimator then loads its kernel from the
 cache. On two free cores the cold part's wall time is about the estimator's
 compilation alone instead of the sum. Nothing is compiled ahead with a warm
-cache, and nothing is pre-filled: an empty cache stays a cold start.
+cache or when no core is free (:func:`start`), and nothing is pre-filled: an
+empty cache stays a cold start.
 
 The child's result is used only through numba's cache, which checks the source
 stamp and the argument types itself: a child that fails or compiles something
@@ -103,13 +104,28 @@ class Ahead:
             proc.wait()
 
 
+def core_free() -> bool:
+    """Whether a second core is idle on average (1-minute load average <= cores - 1, at least 2 cores)."""
+    n = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        return False
+    return n >= 2 and load <= n - 1
+
+
 def start(method: str, sensor_size, params: dict | None) -> Ahead | None:
     """Start compiling ``method`` (with ``params``) in a child when the numba cache lacks it; else None.
 
     ``params`` is the mapping the caller passes to :func:`~evedge.detector.pipeline.make_method`
-    (JSON values: numbers, booleans, strings).
+    (JSON values: numbers, booleans, strings). Environment ``EVEDGE_COMPILE_AHEAD``:
+    ``0`` never, ``1`` whenever the cache lacks the kernel; unset: only when a core
+    is free as well (:func:`core_free`). The child costs CPU (its own start, ~1.2 s:
+    Python, numba and the package imported again) and gains wall time only on an
+    idle core: on a loaded machine it would make the cold start slower.
     """
-    if os.environ.get("EVEDGE_NO_COMPILE_AHEAD") or not is_cold(method):
+    mode = os.environ.get("EVEDGE_COMPILE_AHEAD", "")
+    if mode == "0" or not is_cold(method) or (mode != "1" and not core_free()):
         return None
     try:
         spec = json.dumps({"method": method, "sensor": [int(sensor_size.width), int(sensor_size.height)],

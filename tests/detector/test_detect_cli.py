@@ -355,8 +355,7 @@ def test_detect_cold_cache_compiles_the_estimator_ahead_once(tmp_path, edge_even
     src = tmp_path / "events.txt"
     _write_ecd(src, ev)
     cache = tmp_path / "numba_cache"
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "NUMBA_DEBUG_CACHE": "1"}
-    env.pop("EVEDGE_NO_COMPILE_AHEAD", None)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "NUMBA_DEBUG_CACHE": "1", "EVEDGE_COMPILE_AHEAD": "1"}
     proc = subprocess.run([sys.executable, "-m", "evedge.cli", "detect", str(src), "-o", str(tmp_path / "out"),
                            "--sensor", "20x16", "--times", "20000", "--quiet", "--no-png"],
                           env=env, capture_output=True, text=True)
