@@ -135,11 +135,16 @@ def start(method: str, sensor_size, params: dict | None) -> Ahead | None:
     try:
         proc = subprocess.Popen([sys.executable, "-m", "evedge.detector._precompile"], stdin=subprocess.PIPE,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        proc.stdin.write(spec.encode())
-        proc.stdin.close()
     except OSError:
         return None
-    return Ahead(proc)
+    ahead = Ahead(proc)
+    try:
+        proc.stdin.write(spec.encode())
+        proc.stdin.close()
+    except OSError:  # the child is already gone
+        ahead.close()
+        return None
+    return ahead
 
 
 def sample_events(sensor_size, n: int = 64) -> np.ndarray:

@@ -369,3 +369,18 @@ def test_detect_cold_cache_compiles_the_estimator_ahead_once(tmp_path, edge_even
     assert {p.name: _index_entries(p) for p in indexes} == {p.name: 1 for p in indexes}
     got = read_detection(tmp_path / "out" / "detection.h5")
     assert got.lifetimes["lifetime_us"].tobytes() == run_detect(ev, SensorSize(20, 16)).lifetimes["lifetime_us"].tobytes()
+
+
+def test_compile_ahead_is_off_when_asked_or_unknown(monkeypatch):
+    """No child with EVEDGE_COMPILE_AHEAD=0, for a method without known kernels, or with a warm cache."""
+    from evedge.detector import _precompile
+    from evedge.detector.pipeline import detect as run
+
+    monkeypatch.setenv("EVEDGE_COMPILE_AHEAD", "0")
+    assert _precompile.start("intra", _precompile.SAMPLE_SENSOR, {}) is None
+    monkeypatch.setenv("EVEDGE_COMPILE_AHEAD", "1")
+    assert not _precompile.is_cold("time") and _precompile.start("time", _precompile.SAMPLE_SENSOR, {}) is None
+    ev = _precompile.sample_events(_precompile.SAMPLE_SENSOR)
+    run(ev, _precompile.SAMPLE_SENSOR)  # compiled or loaded: the cache now holds the kernel
+    assert not _precompile.is_cold("intra")
+    assert _precompile.start("intra", _precompile.SAMPLE_SENSOR, {}) is None
