@@ -146,8 +146,10 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     Each chunk's kept events go through the estimator and then the edge image
     (frames taken at the instants inside the chunk, as :func:`edge_frames` takes
     them); their estimates are written into the table in place. No copy of the
-    kept events or of their estimates is made: the peak memory is that of the
-    filter's keep mask, ~55 bytes per event (``benchmarks/bench_cli.py``).
+    kept events or of their estimates is made: here the peak is the filter's keep
+    mask, ~45 bytes per event above the events (its int64 columns); the command's
+    peak, ~100 bytes per event, is the writing of detection.h5, built in memory
+    (``benchmarks/bench_cli.py``).
 
     ``ahead`` (:func:`evedge.detector._precompile.start`): a child compiling the
     estimator's kernel into numba's cache meanwhile; the buffer (compiled and run
