@@ -18,7 +18,14 @@ file in a temporary folder. Measured in one run:
 * the cold start: the same command on the first ``--cold-events`` events (1 M
   and 10 M) with
   an empty numba cache (``NUMBA_CACHE_DIR`` set to a fresh folder) against the
-  same with that cache filled (wall time; target cold <= 2x warm).
+  same with that cache filled (wall time; target cold <= 2x warm). The cold run
+  compiles the estimator in a child process while it reads the input and
+  compiles and runs the buffer (:mod:`evedge.detector._precompile`): a wall-time
+  gain on a second free core, not a CPU gain (its CPU includes the child's); the
+  same cold run with ``EVEDGE_COMPILE_AHEAD=0`` (everything compiled in one
+  process, as before; the default when no core is free) is printed beside it;
+* the event buffer alone (``filter_events``) in ns per event on the big file and
+  on ``stripes.mat`` (issue 12 item 4's target <= 40).
 
 The machine is shared: the load average is printed. Run:
 ``.venv/bin/python benchmarks/bench_cli.py [--copies 30] [--cold-events 1000000 10000000]``.
@@ -106,6 +113,12 @@ def compiled_kernels(tmp: Path):
     print(proc.stdout.rstrip() if proc.returncode == 0 else f"  (failed: {proc.stderr.strip()[-300:]})")
 
 
+def _cpu(f) -> float:
+    c0 = time.process_time()
+    f()
+    return time.process_time() - c0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--copies", type=int, default=30)
@@ -131,13 +144,17 @@ def main(argv=None):
         estimate_lifetimes(big[:5000][kept], size)
         c0 = time.process_time()
         kept = filter_events(big, size)
+        c1 = time.process_time()
         sub = big[kept]
         lt = estimate_lifetimes(sub, size)
         edge_frames(sub, lt, size, frame_t, display="predecessor")
         kernels = time.process_time() - c0
         del sub, lt, kept
+        buf_big = c1 - c0
+        buf_small = min(_cpu(lambda: filter_events(ev, size)) for _ in range(5))
         print(f"kernels (buffer + estimator + {frame_t.size} edge frames), in process: CPU {kernels:.2f} s "
-              f"({n / kernels / 1e6:.2f} M ev/s)")
+              f"({n / kernels / 1e6:.2f} M ev/s); of which the buffer (filter_events) {buf_big / n * 1e9:.0f} ns/event "
+              f"on this file, {buf_small / ev.size * 1e9:.0f} ns/event on stripes.mat (least of 5; target <= 40)")
 
         run_cli(tiny, tmp / "o0")  # fills the numba cache if needed
         _, _, base_rss = run_cli(tiny, tmp / "o0")
@@ -154,11 +171,18 @@ def main(argv=None):
             cold_src = tmp / f"cold{m}.h5"
             write_recording(cold_src, Recording(big[:m], size))
             env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / f"numba_cache{m}")}
+            env["EVEDGE_COMPILE_AHEAD"] = "1"  # the child whatever the load (by default only with a free core)
+            serial_env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / f"numba_cache_serial{m}"),
+                          "EVEDGE_COMPILE_AHEAD": "0"}
+            load0 = os.getloadavg()[0]
             cold = run_cli(cold_src, tmp / "o2", "--no-png", env=env)
             warm = run_cli(cold_src, tmp / "o3", "--no-png", env=env)
-            print(f"cold start on {min(n, m):,} events: empty numba cache wall {cold[0]:.2f} s (CPU {cold[1]:.2f}), "
-                  f"warm {warm[0]:.2f} s (CPU {warm[1]:.2f}): cold / warm = {cold[0] / warm[0]:.2f} wall, "
-                  f"{cold[1] / warm[1]:.2f} CPU (target <= 2)")
+            serial = run_cli(cold_src, tmp / "o4", "--no-png", env=serial_env)
+            print(f"cold start on {min(n, m):,} events: empty numba cache wall {cold[0]:.2f} s (CPU {cold[1]:.2f}, "
+                  f"the compiling child's included), warm {warm[0]:.2f} s (CPU {warm[1]:.2f}): cold / warm = "
+                  f"{cold[0] / warm[0]:.2f} wall, {cold[1] / warm[1]:.2f} CPU (target <= 2); all compiled in one "
+                  f"process (EVEDGE_COMPILE_AHEAD=0): wall {serial[0]:.2f} s, CPU {serial[1]:.2f} "
+                  f"({serial[0] / warm[0]:.2f} / {serial[1] / warm[1]:.2f}); load {load0:.2f}->{os.getloadavg()[0]:.2f}")
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 

@@ -139,15 +139,22 @@ def _method_help() -> str:
             + "; or package.module:factory of a third-party method.")
 
 
-def _estimate(method, events, sensor, filter_name, filter_params, params, frame_t, display, quiet):
+def _estimate(method, events, sensor, filter_name, filter_params, params, frame_t, display, quiet, ahead=None):
     """The per-event table (LIFETIME_COLUMNS: estimates, NaN where none, and the filter's
     keep mask) and the edge frames at ``frame_t``, in one pass over chunks of the events.
 
     Each chunk's kept events go through the estimator and then the edge image
     (frames taken at the instants inside the chunk, as :func:`edge_frames` takes
     them); their estimates are written into the table in place. No copy of the
-    kept events or of their estimates is made: the peak memory is that of the
-    filter's keep mask, ~55 bytes per event (``benchmarks/bench_cli.py``).
+    kept events or of their estimates is made: here the peak is the filter's keep
+    mask, ~45 bytes per event above the events (its int64 columns); the command's
+    peak, ~100 bytes per event, is the writing of detection.h5, built in memory
+    (``benchmarks/bench_cli.py``).
+
+    ``ahead`` (:func:`evedge.detector._precompile.start`): a child compiling the
+    estimator's kernel into numba's cache meanwhile; the buffer (compiled and run
+    in :func:`keep_mask`) and the edge image are compiled here first, then the
+    child is awaited before the estimator's first chunk.
     """
     from tqdm import tqdm
 
@@ -162,6 +169,9 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     table = np.empty(events.size, dtype=list(LIFETIME_COLUMNS))
     table["kept"] = kept
     image = EdgeImage(sensor, display=display)
+    if ahead is not None:
+        _compile_edges(sensor, display)  # while the child compiles the estimator
+        ahead.wait()
     order = np.argsort(frame_t, kind="stable")
     ends = np.searchsorted(events["t"], frame_t[order], side="right")  # frame i counts events[:ends[i]]
     frames = np.zeros((frame_t.size, sensor.height, sensor.width), dtype=bool)
@@ -195,6 +205,22 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
         frames[order[f]] = image.image_at(int(frame_t[order[f]]))
         f += 1
     return table, kept, frames
+
+
+def _compile_edges(sensor, display) -> None:
+    """Compile (or load) the edge image's kernel on a few events, called as :func:`_estimate` calls it.
+
+    The same argument types as the real chunks (checked, read-only events; rows of
+    the estimator's output), so no second specialisation is made.
+    """
+    from ._checks import validated
+    from ._precompile import sample_events
+    from .edges import EdgeImage
+    from .result import empty_lifetimes
+
+    ev = sample_events(sensor)
+    with validated(ev, sensor):
+        EdgeImage(sensor, display=display).process(ev, empty_lifetimes(ev.size))
 
 
 def _versions() -> dict:
@@ -325,13 +351,10 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     replaced only with --overwrite.
     """
     from evedge._output import OutputExistsError, check_output
-    from evedge.io import read_events
-    from evedge.io.detection import Detection, file_sha256, write_detection
-    from evedge.events import Frames
 
+    from . import _precompile
     from .edges import PRIMARY_DISPLAY
-    from ._checks import validated
-    from .pipeline import _default_filter, edge_frames_of, resolved_params
+    from .pipeline import _default_filter, resolved_params
     from .protocols import METHODS
 
     config = config or {}
@@ -367,6 +390,29 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     if replacing:
         _check_replaceable(out)
 
+    # cold numba cache: the estimator compiles in a child while this process reads the input (_precompile)
+    ahead = _precompile.start(method, _precompile.SAMPLE_SENSOR, params) if entry.kind == "estimator" else None
+    try:
+        _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort, display, params,
+                params_all, filter_name, filter_all, embed_events, video, video_colour, write_png, compress,
+                replacing, quiet, ahead)
+    finally:
+        if ahead is not None:
+            ahead.close()
+
+
+def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort, display, params, params_all,
+            filter_name, filter_all, embed_events, video, video_colour, write_png, compress, replacing, quiet,
+            ahead):
+    """The rest of :func:`detect`, from reading the input on (``ahead``: see :func:`_estimate`)."""
+    from evedge._output import OutputExistsError, staged_folder
+    from evedge.io import read_events
+    from evedge.io.detection import Detection, file_sha256, write_detection
+    from evedge.events import Frames
+
+    from ._checks import validated
+    from .pipeline import edge_frames_of
+
     try:
         rec = read_events(events_file, sensor_size=sensor, sort=sort)
     except (ValueError, TypeError, OSError) as err:
@@ -394,7 +440,7 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     if entry.kind == "estimator":
         with validated(events, size):  # checked once, when read (Recording): the stages' checks are O(1)
             table, kept, frames = _estimate(method, events, size, filter_name, filter_all, params, frame_t, display,
-                                            quiet)
+                                            quiet, ahead)
     else:
         frames = edge_frames_of(method, events, size, frame_t, params)
     source = Path(events_file).resolve()
@@ -407,8 +453,6 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
             "events_embedded": bool(embed_events), "frame_times": "--at-frames" if at_frames else "--times" if times is not None else f"--fps {fps:g}",
             "versions": _versions(), "command": "evedge detect"}
     det = Detection(size, events if embed_events else None, table, Frames(frame_t, np.asarray(frames, bool)), meta)
-    from evedge._output import staged_folder
-
     try:
         with staged_folder(out, allowed=_OUTPUT_NAMES) as stage:
             write_detection(stage / "detection.h5", det, compress_per_event=compress)

@@ -331,3 +331,56 @@ def test_detect_streams_chunks_with_the_library_result(tmp_path, edge_events, mo
         np.testing.assert_array_equal(d.lifetimes["kept"], want.kept)
         np.testing.assert_array_equal(d.edges.images, want_frames)
         assert (out / "edges").exists() == ("--no-png" not in extra)
+
+
+def _index_entries(nbi) -> int:
+    """Specialisations recorded in a numba cache index file (numba's own format: version, then (stamp, overloads))."""
+    import pickle
+
+    with open(nbi, "rb") as f:
+        pickle.load(f)
+        _, overloads = pickle.loads(f.read())
+    return len(overloads)
+
+
+def test_detect_cold_cache_compiles_the_estimator_ahead_once(tmp_path, edge_events):
+    """Empty numba cache: the estimator's kernel is compiled by the child (this process loads it from the
+    cache), each kernel has exactly one specialisation, and the output is the library's."""
+    import subprocess
+    import sys
+
+    from evedge.io.detection import read_detection
+
+    ev, _ = edge_events(20, 16, 400, 0.3, n_edges=2, spacing_px=8)
+    src = tmp_path / "events.txt"
+    _write_ecd(src, ev)
+    cache = tmp_path / "numba_cache"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "NUMBA_DEBUG_CACHE": "1", "EVEDGE_COMPILE_AHEAD": "1"}
+    proc = subprocess.run([sys.executable, "-m", "evedge.cli", "detect", str(src), "-o", str(tmp_path / "out"),
+                           "--sensor", "20x16", "--times", "20000", "--quiet", "--no-png"],
+                          env=env, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    log = proc.stdout + proc.stderr
+    intra = [line for line in log.splitlines() if "_intra_stream" in line and "[cache]" in line]
+    assert any("data loaded" in line for line in intra), intra  # compiled by the child, loaded here
+    assert not any("data saved" in line for line in intra), intra
+    indexes = sorted(cache.rglob("*.nbi"))
+    assert any("_intra_stream" in p.name for p in indexes) and any("_edge_update" in p.name for p in indexes)
+    assert {p.name: _index_entries(p) for p in indexes} == {p.name: 1 for p in indexes}
+    got = read_detection(tmp_path / "out" / "detection.h5")
+    assert got.lifetimes["lifetime_us"].tobytes() == run_detect(ev, SensorSize(20, 16)).lifetimes["lifetime_us"].tobytes()
+
+
+def test_compile_ahead_is_off_when_asked_or_unknown(monkeypatch):
+    """No child with EVEDGE_COMPILE_AHEAD=0, for a method without known kernels, or with a warm cache."""
+    from evedge.detector import _precompile
+    from evedge.detector.pipeline import detect as run
+
+    monkeypatch.setenv("EVEDGE_COMPILE_AHEAD", "0")
+    assert _precompile.start("intra", _precompile.SAMPLE_SENSOR, {}) is None
+    monkeypatch.setenv("EVEDGE_COMPILE_AHEAD", "1")
+    assert not _precompile.is_cold("time") and _precompile.start("time", _precompile.SAMPLE_SENSOR, {}) is None
+    ev = _precompile.sample_events(_precompile.SAMPLE_SENSOR)
+    run(ev, _precompile.SAMPLE_SENSOR)  # compiled or loaded: the cache now holds the kernel
+    assert not _precompile.is_cold("intra")
+    assert _precompile.start("intra", _precompile.SAMPLE_SENSOR, {}) is None

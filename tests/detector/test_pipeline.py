@@ -51,6 +51,34 @@ def test_streaming_detector_equals_one_shot(edge_events, random_events):
     np.testing.assert_array_equal(det.image_at(T), want)
 
 
+def test_streaming_detector_until_us_equals_advance_to(edge_events, random_events):
+    """process(chunk, until_us=t) = process(chunk) then advance_to(t): same events, lifetimes and image."""
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
+    bp = BufferParams(tau_min_us=3_000)
+    res = detect(ev, size, buffer_params=bp)
+    two, one = Detector(size, buffer_params=bp), Detector(size, buffer_params=bp)
+    outs_two, outs_one = [], []
+    t = ev["t"]
+    ends = np.arange(int(t[0]) + 700, int(t[-1]) + 700, 700)  # 0.7 ms chunks: some release nothing
+    cuts = np.searchsorted(t, ends)
+    start = 0
+    for end, cut in zip(ends, cuts):
+        c = ev[start:cut]
+        outs_two += [two.process(c), two.advance_to(int(end))]
+        outs_one.append(one.process(c, until_us=int(end)))
+        start = cut
+        np.testing.assert_array_equal(one.image_at(int(end)), two.image_at(int(end)))
+    outs_two.append(two.flush())
+    outs_one.append(one.flush())
+    assert any(o[0].size == 0 for o in outs_one)  # the no-event path is taken
+    for outs in (outs_two, outs_one):
+        np.testing.assert_array_equal(np.concatenate([o[0] for o in outs]), ev[res.kept])
+        assert np.concatenate([o[1] for o in outs]).tobytes() == res.lifetimes[res.kept].tobytes()
+    with pytest.raises(ValueError, match="before the newest"):
+        one.process(ev[:0], until_us=int(t[0]))
+
+
 def test_method_and_param_errors(edge_events):
     size = SensorSize(8, 8)
     ev, _ = edge_events(8, 8, 500, 0.2)
