@@ -92,11 +92,12 @@ def _parse_buffer(items) -> BufferParams:
         if key not in names:
             raise SystemExit(f"--buffer: unknown BufferParams field {key!r} (fields: {', '.join(names)})")
         kw[key] = value
-        if key == "tau_min_us":
+        default = getattr(BufferParams(), key)
+        if isinstance(default, (int, float)):
             try:
-                kw[key] = int(float(value))
+                kw[key] = type(default)(float(value))
             except ValueError:
-                raise SystemExit(f"--buffer tau_min_us: expected a number of microseconds, got {value!r}") from None
+                raise SystemExit(f"--buffer {key}: expected a number, got {value!r}") from None
     try:
         return BufferParams(**kw)
     except (TypeError, ValueError) as err:
