@@ -185,8 +185,23 @@ def empty_line_state(width, height):
     return state
 
 
+@njit(cache=True, inline="always")
+def _midway(t1, tc, t2, line_us, line_tol):
+    """Whether ``tc`` lies between ``t1`` and ``t2`` (either order), each at most ``line_us`` away, and about midway."""
+    if t1 == NEVER or t2 == NEVER:
+        return False
+    if t1 > t2:
+        t1, t2 = t2, t1
+    if t1 > tc or tc > t2:
+        return False
+    d1 = t2 - tc
+    d2 = tc - t1
+    return d1 <= line_us and d2 <= line_us and abs(d1 - d2) <= line_tol * max(d1, d2)
+
+
 @njit(cache=True)
-def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_us, line_tol, line_quiet):
+def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_us, line_tol, line_quiet,
+               line_count):
     """The line rule for events ``n_old..`` (after :func:`_buffer_scan` on the same arrays): or-s into ``supported``.
 
     When event ``k`` (pixel ``u``) arrives, for each of the 8 directions ``a``, let
@@ -194,14 +209,17 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
     before ``k`` at ``t_c`` and ``t_e``, and ``c``'s event before its latest at
     ``t_c0``. The event at ``c`` is supported when ``t_e <= t_c <= t_k``,
     ``d1 = t_k - t_c <= line_us``, ``d2 = t_c - t_e <= line_us``,
-    ``|d1 - d2| <= line_tol * max(d1, d2)`` and ``t_c - t_c0 >= line_quiet * (d1 + d2)``
-    (never fired before counts as quiet): it lies midway in time between
-    neighbours on opposite sides, as on an edge crossing the three pixels at a
-    steady speed, however slowly, and its own pixel was quiet for longer than
-    that edge took to cross the three (on an active pixel a chance midpoint is
-    likely). The supported event is ``c``'s, one pixel from both others, so a
-    one-row halo keeps strips exact. Only events still held are marked (the
-    caller holds an unsupported event ``line_us`` long).
+    ``|d1 - d2| <= line_tol * max(d1, d2)`` (:func:`_midway`),
+    ``t_c - t_c0 >= line_quiet * (d1 + d2)`` (never fired before counts as quiet)
+    and, with ``line_count = 2``, one of the three other pairs of opposite
+    neighbours of ``c`` is midway too (their latest events before ``k``, either
+    order): ``c``'s event lies midway in time between neighbours on opposite
+    sides, as on an edge crossing the three pixels at a steady speed, however
+    slowly, and its own pixel was quiet for longer than that edge took to cross
+    the three (on an active pixel a chance midpoint is likely). Every pixel read
+    is within one of ``c``, the supported one, so a one-row halo keeps strips
+    exact. Only events still held are marked (the caller holds an unsupported
+    event ``line_us`` long).
     """
     row = LINE_FIELDS * (width + 4)
     plane = (height + 4) * row
@@ -224,15 +242,25 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
                 if gc < base_g or supported[gc - base_g]:
                     continue
                 te = state[c + step]
-                if te == NEVER or te > tc:
-                    continue
-                d1 = tk - tc
-                d2 = tc - te
-                if d2 > line_us or abs(d1 - d2) > line_tol * max(d1, d2):
+                if not _midway(te, tc, tk, line_us, line_tol):
                     continue
                 tc0 = state[c + 2]
-                if tc0 == NEVER or tc - tc0 >= line_quiet * (d1 + d2):
-                    supported[gc - base_g] = True
+                if tc0 != NEVER and tc - tc0 < line_quiet * (tk - te):
+                    continue
+                if line_count >= 2:
+                    found = False
+                    for b in range(4):  # the pairs (1, 0), (0, 1), (1, 1), (1, -1), but the one along a
+                        bx = 1 if b != 1 else 0
+                        by = 0 if b == 0 else (1 if b != 3 else -1)
+                        if (bx == dx and by == dy) or (bx == -dx and by == -dy):
+                            continue
+                        sb = by * row + LINE_FIELDS * bx
+                        if _midway(state[c + sb], tc, state[c - sb], line_us, line_tol):
+                            found = True
+                            break
+                    if not found:
+                        continue
+                supported[gc - base_g] = True
         state[u + 2] = state[u]
         state[u] = tk
         state[u + 1] = base_g + k

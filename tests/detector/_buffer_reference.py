@@ -82,11 +82,27 @@ def reference_mask(events, sensor_size: SensorSize, tau_us: int, causal: bool) -
     return supported
 
 
-def line_reference_mask(events, sensor_size: SensorSize, line_us: int, line_tol: float, line_quiet: float) -> np.ndarray:
+def _midway(t1, tc, t2, line_us, line_tol):
+    if t1 is None or t2 is None:
+        return False
+    lo, hi = min(t1, t2), max(t1, t2)
+    d1, d2 = hi - tc, tc - lo
+    return d1 >= 0 and d2 >= 0 and d1 <= line_us and d2 <= line_us and abs(d1 - d2) <= line_tol * max(d1, d2)
+
+
+def line_reference_mask(events, sensor_size: SensorSize, line_us: int, line_tol: float, line_quiet: float,
+                        line_count: int = 1) -> np.ndarray:
     """The line rule alone (:class:`~evedge.detector.buffer.BufferParams` ``line_window_us``), straight from its
     definition, in plain Python: for each event ``k`` at ``u`` and each direction ``a``, the latest events before
     ``k`` (stream order) at ``c = u + a`` and ``e = u + 2a`` of ``k``'s polarity, and ``c``'s event before that;
-    ``c``'s latest event is kept when it lies midway in time between the two (see ``_line_scan``)."""
+    ``c``'s latest event is kept when it lies midway in time between the two, ``c`` was quiet before, and (with
+    ``line_count = 2``) another pair of ``c``'s opposite neighbours is midway too (see ``_line_scan``)."""
+
+    def latest(q):
+        if not (0 <= q[0] < w and 0 <= q[1] < h) or not history.get(q):
+            return None
+        return history[q][-1][0]
+
     w, h = sensor_size.width, sensor_size.height
     xs, ys = events["x"].astype(int), events["y"].astype(int)
     ts, ps = events["t"].astype(int), events["p"].astype(int)
@@ -112,7 +128,15 @@ def line_reference_mask(events, sensor_size: SensorSize, line_us: int, line_tol:
                     continue
                 if abs(d1 - d2) > line_tol * max(d1, d2):
                     continue
-                if len(history[c]) < 2 or tc - history[c][-2][0] >= line_quiet * (d1 + d2):
-                    keep[gc] = True
+                if len(history[c]) >= 2 and tc - history[c][-2][0] < line_quiet * (d1 + d2):
+                    continue
+                if line_count >= 2:
+                    others = [(bx, by) for bx, by in ((1, 0), (0, 1), (1, 1), (1, -1))
+                              if (bx, by) not in ((dx, dy), (-dx, -dy))]
+                    if not any(_midway(latest((c[0] + bx, c[1] + by, c[2])), tc,
+                                       latest((c[0] - bx, c[1] - by, c[2])), line_us, line_tol)
+                               for bx, by in others):
+                        continue
+                keep[gc] = True
         history.setdefault(u, []).append((tk, k))
     return keep

@@ -66,6 +66,24 @@ def test_an_active_middle_pixel_is_not_kept():
                                                                                               False]
 
 
+def test_two_lines_through_the_event():
+    # an edge at 20 degrees, 10 px/s, crossing a 3 x 3 block: each pixel fires when the edge reaches its centre
+    a = np.radians(20)
+    ys, xs = np.mgrid[3:6, 3:6]
+    t = np.round((xs * np.cos(a) + ys * np.sin(a)) * 100_000).astype(np.int64).ravel()
+    order = np.argsort(t, kind="stable")
+    ev = make_events(xs.ravel()[order], ys.ravel()[order], t[order], [True] * 9)
+    centre = (ev["x"] == 4) & (ev["y"] == 4)
+    for count in (1, 2):
+        got = filter_events(ev, S, BufferParams(line_window_us=100_000, line_count=count))
+        assert got[centre].all()
+    # along (0, 1) and (1, -1) the centre is midway (34 and 60 ms); along (1, 0) 94 ms: a window of 70 ms sees two
+    # lines, 40 ms one
+    assert filter_events(ev, S, BufferParams(line_window_us=70_000, line_count=2))[centre].all()
+    assert filter_events(ev, S, BufferParams(line_window_us=40_000, line_count=1))[centre].all()
+    assert not filter_events(ev, S, BufferParams(line_window_us=40_000, line_count=2))[centre].any()
+
+
 def test_the_rule_uses_the_latest_events_only():
     # pixel 4 fires again before the middle: its latest is after t_c, so no line that way round
     ev = make_events([2, 4, 3, 4], [4, 4, 4, 4], [0, 5_000, SLOW, 2 * SLOW], [True] * 4)
@@ -89,7 +107,7 @@ def test_latency_is_the_longer_window():
     (dict(line_window_us=-1), ValueError), (dict(line_window_us=2.5), TypeError),
     (dict(line_window_us=True), TypeError), (dict(line_tolerance=1.5), ValueError),
     (dict(line_tolerance=-0.1), ValueError), (dict(line_quiet=-1), ValueError),
-    (dict(line_quiet=float("inf")), ValueError), (dict(line_window_us=1000, mode="causal"), ValueError),
+    (dict(line_quiet=float("inf")), ValueError), (dict(line_count=3), ValueError), (dict(line_count=True), ValueError), (dict(line_window_us=1000, mode="causal"), ValueError),
 ])
 def test_bad_params(kwargs, exc):
     with pytest.raises(exc, match="BufferParams"):
@@ -133,21 +151,22 @@ def _strips_mask(ev, size, params, cuts):
         _buffer_scan(xs, ys, ts, ps, np.empty(n, np.int64), sup, 0, 0, new_state(size.width, hi - lo), size.width,
                      hi - lo, params.tau_min_us, False)
         _line_scan(xs, ys, ts, ps, sup, 0, 0, new_line_state(size.width, hi - lo), size.width, hi - lo,
-                   params.line_window_us, params.line_tolerance, params.line_quiet)
+                   params.line_window_us, params.line_tolerance, params.line_quiet, params.line_count)
         own = (y[sel] >= lo_own) & (y[sel] < hi_own)
         out[sel[own]] = sup[own]
     return out
 
 
 @pytest.mark.parametrize("seed", range(3))
-@pytest.mark.parametrize("tol, quiet", [(0.5, 2.0), (0.3, 0.0), (1.0, 4.0)])
-def test_kernel_equals_definition_chunked_and_strips(seed, tol, quiet):
+@pytest.mark.parametrize("tol, quiet, count", [(0.5, 2.0, 1), (0.3, 0.0, 1), (1.0, 4.0, 1), (0.5, 2.0, 2),
+                                               (1.0, 0.0, 2)])
+def test_kernel_equals_definition_chunked_and_strips(seed, tol, quiet, count):
     size = SensorSize(24, 18)
     ev = _slow_edges_and_noise(size, seed)
-    params = BufferParams(line_window_us=60_000, line_tolerance=tol, line_quiet=quiet)
+    params = BufferParams(line_window_us=60_000, line_tolerance=tol, line_quiet=quiet, line_count=count)
     short = reference_mask(ev, size, params.tau_min_us, False)
-    line = line_reference_mask(ev, size, 60_000, tol, quiet)
-    assert (line & ~short).sum() > 20 and (~(line | short)).sum() > 20, "the case must discriminate"
+    line = line_reference_mask(ev, size, 60_000, tol, quiet, count)
+    assert (line & ~short).sum() > 10 and (~(line | short)).sum() > 20, "the case must discriminate"
     want = short | line
     np.testing.assert_array_equal(filter_events(ev, size, params), want)
     np.testing.assert_array_equal(filter_events(ev, size, params, n_tiles=3), want)
