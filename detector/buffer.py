@@ -40,7 +40,7 @@ Line rule (``line_window_us``, a departure from the paper, off by default; :func
     noise kept by the buffer 37.3 -> 41.8 %, noise given a lifetime 6.2 ->
     7.0 %; two pairs (the preset: 150 ms, tolerance 0.7): 38.9 % and 6.7 %,
     slow oblique signal kept 66 -> 79 % (median of those cells). Cost: a second
-    pass with its own state, 1.6x the default buffer's CPU per event on
+    pass with its own state, 1.6-1.7x the default buffer's CPU per event on
     ``stripes.mat`` (``benchmarks/bench_buffer_rules.py``); the default path
     is unchanged.
 
