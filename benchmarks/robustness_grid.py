@@ -27,6 +27,7 @@ instead of the defaults; ``--intra key=value``
 (repeatable) changes an :class:`~evedge.detector.intra.IntraParams` field on top, e.g.
 ``--intra newer_share_max=0.25`` to measure a departure from the paper; ``--buffer
 tau_min_us=30000`` changes the proposed detector's event buffer (the paper's 10 ms by default);
+``--buffer-preset line`` starts it from :func:`~evedge.detector.buffer.line_params` (the line rule);
 ``--scene SCENE.toml`` scores one scene file instead (the ``--preset`` / ``--intra`` parameters,
 both presets and Mueggler's); ``--csv FILE`` writes every cell's figures, ``--plot FILE.png`` draws them (clean stripes: median error and share > 2x off against
 speed per contrast ratio, median over the angles; noisy cells: share of noise events given a
@@ -48,7 +49,7 @@ import time
 import numpy as np
 
 from evedge.bench.robustness import STEADY_US, cells, run_grid, score, tasks
-from evedge.detector.buffer import BufferParams
+from evedge.detector.buffer import LINE_RULE, BufferParams
 from evedge.detector.intra import IntraParams, noise_params, robust_params
 from evedge.detector.pipeline import detect
 from evedge.sim import simulate
@@ -84,19 +85,24 @@ def _parse_intra(items, base: IntraParams | None = None) -> IntraParams:
         raise SystemExit(f"--intra: {err}") from None
 
 
-def _parse_buffer(items) -> BufferParams:
-    kw = {}
+#: --buffer-preset: where the proposed detector's buffer parameters start (``--buffer`` changes fields on top).
+BUFFER_PRESETS = {"paper": lambda: {}, "line": lambda: dict(LINE_RULE)}
+
+
+def _parse_buffer(items, base: dict | None = None) -> BufferParams:
+    kw = dict(base or {})
     names = [f.name for f in dataclasses.fields(BufferParams)]
     for item in items:
         key, _, value = item.partition("=")
         if key not in names:
             raise SystemExit(f"--buffer: unknown BufferParams field {key!r} (fields: {', '.join(names)})")
         kw[key] = value
-        if key == "tau_min_us":
+        default = getattr(BufferParams(), key)
+        if isinstance(default, (int, float)):
             try:
-                kw[key] = int(float(value))
+                kw[key] = type(default)(float(value))
             except ValueError:
-                raise SystemExit(f"--buffer tau_min_us: expected a number of microseconds, got {value!r}") from None
+                raise SystemExit(f"--buffer {key}: expected a number, got {value!r}") from None
     try:
         return BufferParams(**kw)
     except (TypeError, ValueError) as err:
@@ -119,6 +125,8 @@ def main(argv=None) -> int:
     ap.add_argument("--intra", action="append", default=[], metavar="KEY=VALUE", help="IntraParams field")
     ap.add_argument("--buffer", action="append", default=[], metavar="KEY=VALUE",
                     help="BufferParams field of the proposed detector's event buffer (e.g. tau_min_us=30000)")
+    ap.add_argument("--buffer-preset", choices=tuple(BUFFER_PRESETS), default="paper",
+                    help="the proposed detector's event buffer: the paper's rule, or with the line rule (line_params())")
     ap.add_argument("--no-mueggler", action="store_true", help="skip the baseline")
     ap.add_argument("--only", default=None, choices=("stripes", "rotation", "shapes"), help="only cells of this kind")
     ap.add_argument("--workers", type=int, default=None,
@@ -140,7 +148,7 @@ def main(argv=None) -> int:
     except ValueError:
         ap.error(f"--size: expected WxH, e.g. 96x72, got {size!r}")
     grid = [c for c in cells(args.quick) if args.only is None or c[0] == args.only]
-    buffer = _parse_buffer(args.buffer)
+    buffer = _parse_buffer(args.buffer, BUFFER_PRESETS[args.buffer_preset]())
     methods = [("intra", "intra", params, buffer)] + ([] if args.no_mueggler else [("mueggler", "mueggler", None)])
     names = [m[0] for m in methods]
     wall = time.perf_counter()

@@ -152,3 +152,115 @@ def _n_decided(t, supported, t_latest, tau_us, causal):
             break
         k += 1
     return k
+
+
+# ---------------------------------------------------------------- the line rule (option, off by default)
+#
+# Its own per-pixel state, flat int64 laid out as ``(2, height + 4, width + 4, 3)``
+# (:func:`new_line_state`): a border of two pixels that never fire, so the rule's
+# reads two pixels out need no bounds checks. ``[..., 0]`` is the pixel's latest
+# timestamp (:data:`NEVER`: none), ``[..., 1]`` the global index of that event,
+# ``[..., 2]`` the timestamp of the pixel's event before it (:data:`NEVER`: none).
+
+LINE_FIELDS = 3
+
+
+@njit(cache=True)
+def new_line_state(width, height):
+    """Empty state of :func:`_line_scan` (no event seen), flat: ``2 * (height + 4) * (width + 4) * 3`` int64."""
+    state = np.empty(2 * LINE_FIELDS * (height + 4) * (width + 4), dtype=np.int64)
+    for i in range(0, state.shape[0], LINE_FIELDS):
+        state[i] = NEVER
+        state[i + 1] = -1
+        state[i + 2] = NEVER
+    return state
+
+
+def empty_line_state(width, height):
+    """:func:`new_line_state` in plain numpy (the same bytes, no compilation)."""
+    state = np.empty(2 * LINE_FIELDS * (height + 4) * (width + 4), dtype=np.int64)
+    state[0::LINE_FIELDS] = NEVER
+    state[1::LINE_FIELDS] = -1
+    state[2::LINE_FIELDS] = NEVER
+    return state
+
+
+@njit(cache=True, inline="always")
+def _midway(t1, tc, t2, line_us, line_tol):
+    """Whether ``tc`` lies between ``t1`` and ``t2`` (either order), each at most ``line_us`` away, and about midway."""
+    if t1 == NEVER or t2 == NEVER:
+        return False
+    if t1 > t2:
+        t1, t2 = t2, t1
+    if t1 > tc or tc > t2:
+        return False
+    d1 = t2 - tc
+    d2 = tc - t1
+    return d1 <= line_us and d2 <= line_us and abs(d1 - d2) <= line_tol * max(d1, d2)
+
+
+@njit(cache=True)
+def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_us, line_tol, line_quiet,
+               line_count):
+    """The line rule for events ``n_old..`` (after :func:`_buffer_scan` on the same arrays): or-s into ``supported``.
+
+    When event ``k`` (pixel ``u``) arrives, for each of the 8 directions ``a``, let
+    ``c = u + a`` and ``e = u + 2a`` (same polarity), with their latest events
+    before ``k`` at ``t_c`` and ``t_e``, and ``c``'s event before its latest at
+    ``t_c0``. The event at ``c`` is supported when ``t_e <= t_c <= t_k``,
+    ``d1 = t_k - t_c <= line_us``, ``d2 = t_c - t_e <= line_us``,
+    ``|d1 - d2| <= line_tol * max(d1, d2)`` (:func:`_midway`),
+    ``t_c - t_c0 >= line_quiet * (d1 + d2)`` (never fired before counts as quiet)
+    and, with ``line_count = 2``, one of the three other pairs of opposite
+    neighbours of ``c`` is midway too (their latest events before ``k``, either
+    order): ``c``'s event lies midway in time between neighbours on opposite
+    sides, as on an edge crossing the three pixels at a steady speed, however
+    slowly, and its own pixel was quiet for longer than that edge took to cross
+    the three (on an active pixel a chance midpoint is likely). Every pixel read
+    is within one of ``c``, the supported one, so a one-row halo keeps strips
+    exact. Only events still held are marked (the caller holds an unsupported
+    event ``line_us`` long).
+    """
+    row = LINE_FIELDS * (width + 4)
+    plane = (height + 4) * row
+    n = x.shape[0]
+    for k in range(n_old, n):
+        tk = t[k]
+        lo = tk - line_us
+        lo_n = lo + (lo == NEVER)
+        u = p[k] * plane + (y[k] + 2) * row + LINE_FIELDS * (x[k] + 2)
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                if dx == 0 and dy == 0:
+                    continue
+                step = dy * row + LINE_FIELDS * dx
+                c = u + step
+                tc = state[c]
+                if tc < lo_n:
+                    continue
+                gc = state[c + 1]
+                if gc < base_g or supported[gc - base_g]:
+                    continue
+                te = state[c + step]
+                if not _midway(te, tc, tk, line_us, line_tol):
+                    continue
+                tc0 = state[c + 2]
+                if tc0 != NEVER and tc - tc0 < line_quiet * (tk - te):
+                    continue
+                if line_count >= 2:
+                    found = False
+                    for b in range(4):  # the pairs (1, 0), (0, 1), (1, 1), (1, -1), but the one along a
+                        bx = 1 if b != 1 else 0
+                        by = 0 if b == 0 else (1 if b != 3 else -1)
+                        if (bx == dx and by == dy) or (bx == -dx and by == -dy):
+                            continue
+                        sb = by * row + LINE_FIELDS * bx
+                        if _midway(state[c + sb], tc, state[c - sb], line_us, line_tol):
+                            found = True
+                            break
+                    if not found:
+                        continue
+                supported[gc - base_g] = True
+        state[u + 2] = state[u]
+        state[u] = tk
+        state[u + 1] = base_g + k

@@ -80,3 +80,63 @@ def reference_mask(events, sensor_size: SensorSize, tau_us: int, causal: bool) -
                           np.full(2 * w * h, _NEVER, dtype=np.int64), np.full(2 * w * h, -1, dtype=np.int64),
                           np.full(2 * w * h, -1, dtype=np.int64), w, h, tau_us, causal)
     return supported
+
+
+def _midway(t1, tc, t2, line_us, line_tol):
+    if t1 is None or t2 is None:
+        return False
+    lo, hi = min(t1, t2), max(t1, t2)
+    d1, d2 = hi - tc, tc - lo
+    return d1 >= 0 and d2 >= 0 and d1 <= line_us and d2 <= line_us and abs(d1 - d2) <= line_tol * max(d1, d2)
+
+
+def line_reference_mask(events, sensor_size: SensorSize, line_us: int, line_tol: float, line_quiet: float,
+                        line_count: int = 1) -> np.ndarray:
+    """The line rule alone (:class:`~evedge.detector.buffer.BufferParams` ``line_window_us``), straight from its
+    definition, in plain Python: for each event ``k`` at ``u`` and each direction ``a``, the latest events before
+    ``k`` (stream order) at ``c = u + a`` and ``e = u + 2a`` of ``k``'s polarity, and ``c``'s event before that;
+    ``c``'s latest event is kept when it lies midway in time between the two, ``c`` was quiet before, and (with
+    ``line_count = 2``) another pair of ``c``'s opposite neighbours is midway too (see ``_line_scan``)."""
+
+    def latest(q):
+        if not (0 <= q[0] < w and 0 <= q[1] < h) or not history.get(q):
+            return None
+        return history[q][-1][0]
+
+    w, h = sensor_size.width, sensor_size.height
+    xs, ys = events["x"].astype(int), events["y"].astype(int)
+    ts, ps = events["t"].astype(int), events["p"].astype(int)
+    history: dict = {}  # (x, y, p) -> list of (t, index), stream order
+    keep = np.zeros(events.size, bool)
+    for k in range(events.size):
+        u = (int(xs[k]), int(ys[k]), int(ps[k]))
+        tk = int(ts[k])
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                if dx == 0 and dy == 0:
+                    continue
+                c = (u[0] + dx, u[1] + dy, u[2])
+                e = (u[0] + 2 * dx, u[1] + 2 * dy, u[2])
+                if not (0 <= c[0] < w and 0 <= c[1] < h) or not history.get(c):
+                    continue
+                if not (0 <= e[0] < w and 0 <= e[1] < h) or not history.get(e):
+                    continue
+                tc, gc = history[c][-1]
+                te = history[e][-1][0]
+                d1, d2 = tk - tc, tc - te
+                if not (0 <= d2 and d1 <= line_us and d2 <= line_us):
+                    continue
+                if abs(d1 - d2) > line_tol * max(d1, d2):
+                    continue
+                if len(history[c]) >= 2 and tc - history[c][-2][0] < line_quiet * (d1 + d2):
+                    continue
+                if line_count >= 2:
+                    others = [(bx, by) for bx, by in ((1, 0), (0, 1), (1, 1), (1, -1))
+                              if (bx, by) not in ((dx, dy), (-dx, -dy))]
+                    if not any(_midway(latest((c[0] + bx, c[1] + by, c[2])), tc,
+                                       latest((c[0] - bx, c[1] - by, c[2])), line_us, line_tol)
+                               for bx, by in others):
+                        continue
+                keep[gc] = True
+        history.setdefault(u, []).append((tk, k))
+    return keep

@@ -1,5 +1,6 @@
 """``evedge detect`` end to end on a small synthetic recording written as ECD text."""
 
+import dataclasses
 import os
 
 import h5py
@@ -275,7 +276,7 @@ def test_detect_params_config_and_self_description(tmp_path, edge_events):
     d = read_detection(out / "detection.h5")
     assert d.metadata["params"]["delta_px"] == 0.1 and d.metadata["params"]["seed"] == 7  # --param wins
     assert d.metadata["params"]["window_size"] == 5  # every parameter, defaults included
-    assert d.metadata["filter_params"] == {"mode": "causal", "tau_min_us": 3000}
+    assert d.metadata["filter_params"] == {**dataclasses.asdict(BufferParams()), "mode": "causal", "tau_min_us": 3000}
     assert d.metadata["display"] == "lifetime_only" and d.metadata["method"] == "intra"
     assert d.metadata["source"]["sha256"] == file_sha256(src) and d.metadata["source"]["path"] == str(src.resolve())
     assert set(d.metadata["versions"]) >= {"evedge", "numpy", "python"}
