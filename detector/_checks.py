@@ -78,6 +78,11 @@ def validated(events: np.ndarray, sensor_size: SensorSize):
     if stack is None:
         stack = _VALIDATED.stack = []
     unlock = events.flags.writeable
+    if unlock and not _relockable(events):
+        # locking could not be undone (a writeable view of memory made read-only since):
+        # leave the array as it is; the stages then check it themselves (O(n), same results)
+        yield events
+        return
     events.flags.writeable = False
     stack.append((events, sensor_size))
     try:
@@ -86,6 +91,25 @@ def validated(events: np.ndarray, sensor_size: SensorSize):
         stack.pop()
         if unlock:
             events.flags.writeable = True
+
+
+def _relockable(events: np.ndarray) -> bool:
+    """Whether a writeable ``events`` can be made writeable again after :func:`validated` locks it.
+
+    numpy refuses ``writeable = True`` when a base of the array is read-only (e.g. a
+    view taken before its base was locked, or memory of an immutable buffer).
+    """
+    base = events.base
+    while isinstance(base, np.ndarray):
+        if not base.flags.writeable:
+            return False
+        base = base.base
+    if base is None:
+        return True
+    try:
+        return not memoryview(base).readonly
+    except TypeError:
+        return False
 
 
 def _is_validated(events, sensor_size: SensorSize) -> bool:

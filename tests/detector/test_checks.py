@@ -79,6 +79,20 @@ def test_the_array_is_read_only_during_the_block_only():
     assert ev.flags.writeable and not getattr(_checks._VALIDATED, "stack", [])  # restored on errors too
 
 
+def test_a_view_whose_base_was_locked_since_is_left_writeable_and_checked(count):
+    """numpy cannot make such a view writeable again: the block leaves it alone (the stages check it)."""
+    base = check_events(_events(), SIZE)
+    view = base[:]
+    base.flags.writeable = False  # the view stays writeable, but could not be made so again once locked
+    assert count == [400]
+    with validated(view, SIZE):
+        assert view.flags.writeable
+        check_events(view, SIZE)  # not covered by the block: checked
+    assert view.flags.writeable and count == [400, 400]
+    detect(view, SIZE)  # the pipeline runs (it used to fail restoring the flag)
+    assert view.flags.writeable
+
+
 def test_only_checked_event_arrays_are_accepted():
     with pytest.raises(TypeError, match="EVENT_DTYPE"):
         with validated(np.zeros(3), SIZE):
