@@ -52,7 +52,9 @@ import numpy as np
 from numba import njit, prange
 
 from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
+from ._checks import NEVER_US
 from ._buffer_kernels import _buffer_scan, new_state
+from ._edges_kernels import _DX, _DY, _edge_update
 from ._intra_kernels import _intra_stream, _scratch
 from ._noise_kernels import _AGREE, _BURST_SPAN
 
@@ -130,6 +132,86 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
     _buffer_tiles(x, y, t, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width, tau_us, causal,
                   supported)
     return supported
+
+
+# ---------------------------------------------------------------- edge image
+
+
+@njit(parallel=True, cache=True)
+def _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, rows, own_lo, own_hi, width, clear_behind,
+                invalid_clears, burst, times, order, out):
+    """Edge frames of every strip (one per ``prange`` iteration) at the sorted instants ``times``.
+
+    A strip replays the events of its rows and of one row on each side
+    (:func:`~evedge.detector._edges_kernels._edge_update` on its own state) and
+    writes its owned rows of frame ``order[i]`` at ``times[i]``.
+    """
+    for s in prange(lo.shape[0]):
+        sel = idx[starts[s]:starts[s + 1]]
+        n = sel.shape[0]
+        xs = np.empty(n, np.int64)
+        ys = np.empty(n, np.int64)
+        ts = np.empty(n, np.int64)
+        ls = np.empty(n)
+        us = np.empty(n)
+        ws = np.empty(n)
+        vs = np.empty(n, np.bool_)
+        ps = np.empty(n, np.int64)
+        for j in range(n):
+            k = sel[j]
+            xs[j] = x[k]
+            ys[j] = y[k] - lo[s]
+            ts[j] = t[k]
+            ls[j] = lt[k]
+            us[j] = vx[k]
+            ws[j] = vy[k]
+            vs[j] = valid[k]
+            ps[j] = p[k]
+        cells = rows[s] * width
+        last_t = np.full(cells, NEVER_US, np.int64)
+        expiry = np.full(cells, -np.inf)
+        start_t = np.full(cells, NEVER_US, np.int64)
+        prev_lt = np.full(cells, np.nan)
+        prev_pol = np.full(cells, -1, np.int8)
+        a = 0
+        r0 = own_lo[s] - lo[s]
+        r1 = own_hi[s] - lo[s]
+        for i in range(times.shape[0]):
+            tt = times[i]
+            b = a
+            while b < n and ts[b] <= tt:
+                b += 1
+            if b > a:
+                _edge_update(xs[a:b], ys[a:b], ts[a:b], ls[a:b], us[a:b], ws[a:b], vs[a:b], last_t, expiry, width,
+                             rows[s], clear_behind, invalid_clears, _DX, _DY, ps[a:b], burst, start_t, prev_lt,
+                             prev_pol)
+                a = b
+            f = order[i]
+            for r in range(r0, r1):
+                for c in range(width):
+                    q = r * width + c
+                    out[f, r + lo[s], c] = last_t[q] <= tt and tt < expiry[q]
+
+
+def edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, width: int, height: int, clear_behind: bool,
+                      invalid_clears: bool, burst: float, times: np.ndarray, order: np.ndarray, n_tiles: int,
+                      out: np.ndarray) -> None:
+    """Edge frames over ``n_tiles`` strips in parallel (halo one row): the serial frames, written into ``out``.
+
+    A pixel's state changes only by its own events and by the clearing of an
+    8-neighbour's event (``clear_behind``), which depends on that event alone
+    (its time, flow and validity), not on the neighbour pixel's state: a strip
+    that replays its rows' events and those of one row on each side has the
+    serial state in its owned rows. ``times`` are the instants sorted
+    (``times[i]`` is frame ``order[i]``); cut where the strips hold about as many
+    events (:func:`balanced_strips`).
+    """
+    own = balanced_strips(y, height, n_tiles)
+    lo = np.maximum(own[:, 0] - 1, 0)
+    hi = np.minimum(own[:, 1] + 1, height)
+    idx, starts = _strip_index(y, lo, hi)
+    _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width,
+                clear_behind, invalid_clears, burst, times, order, out)
 
 
 # ---------------------------------------------------------------- intra-pixel estimator
