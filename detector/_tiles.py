@@ -335,7 +335,7 @@ def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_
 @njit(cache=True)
 def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt, qrow, queue, st, row0, rows,
                own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos,
-               bidx, bl, bvx, bvy, bvalid, stats):
+               bidx, bl, bvx, bvy, bvalid, stats, par, me):
     """Run one strip for up to ``budget`` events, out of time order where that is provably the same.
 
     The strip's events are taken in time order from ``st[0]`` (cursor). An event
@@ -352,6 +352,11 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     :func:`_intra_stream` in batches; a halo event is replayed at once (after the
     batch when the batch holds events within ``half`` rows of it, which read its
     pixel). Returns the events run; ``stats[1]`` counts the deferred ones.
+
+    ``dec, dec_lt`` are ``(2, events)``: a strip publishes in row ``me`` (its index's
+    parity) and reads an event's decision in row ``par[y]`` (its owner's parity):
+    neighbouring strips write different arrays, so their writes of events close
+    in time do not share cache lines.
     """
     burst = kargs[0]
     per_pol = kargs[1]
@@ -369,6 +374,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     near_lo = 0  # of which within half rows of the strip's first / last owned row
     near_hi = 0
     recheck = 0
+    n_batches = 0  # counted here, added to stats once: the strips' stats rows share cache lines
+    n_deferred = 0
     while done < budget:
         jp = -1
         looked = head < tail and done >= recheck
@@ -376,8 +383,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             k = seg[queue[head & mask]]
             pr = ((1 if p[k] else 0) if per_pol else 0) * rows + y[k] - row0
             if own_lo <= y[k] < own_hi or _halo_event(k, pr * width + x[k], t[k], np.int8(1 if p[k] else 0), sae,
-                                                      prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, agree,
-                                                      span, False):
+                                                      prev_t, prev_lt, prev_pol, dec[par[y[k]]],
+                                                      dec_lt[par[y[k]]], burst, startup, agree, span, False):
                 jp = queue[head & mask]
                 head += 1
                 qrow[pr] -= 1
@@ -391,7 +398,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             later = head < tail and _queued_near(qrow, qcnt, pl, r, x[k], rows, width, half)
             if not later and not own_lo <= y[k] < own_hi:
                 later = not _halo_event(k, (pl + r) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t,
-                                        prev_lt, prev_pol, dec, dec_lt, burst, startup, agree, span, False)
+                                        prev_lt, prev_pol, dec[par[y[k]]], dec_lt[par[y[k]]], burst, startup, agree,
+                                        span, False)
             if not later:
                 jp = cur
             elif tail - head > mask:
@@ -401,7 +409,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
                 tail += 1
                 qrow[pl + r] += 1
                 qcnt[(pl + r) * width + x[k]] += 1
-                stats[1] += 1
+                n_deferred += 1
             cur += 1
         if jp < 0:
             if head < tail and not looked:
@@ -411,10 +419,10 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
         k = seg[jp]
         if own_lo <= y[k] < own_hi:
             if m == nb:
-                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt,
-                       width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy,
-                       bvalid, m)
-                stats[0] += 1
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me],
+                       dec_lt[me], width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl,
+                       bvx, bvy, bvalid, m)
+                n_batches += 1
                 m = near_lo = near_hi = 0
             bpos[m] = jp
             m += 1
@@ -422,18 +430,20 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             near_hi += 1 if y[k] >= own_hi - half else 0
         else:
             if (near_lo > 0 and y[k] < own_lo) or (near_hi > 0 and y[k] >= own_hi):
-                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt,
-                       width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy,
-                       bvalid, m)
-                stats[0] += 1
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me],
+                       dec_lt[me], width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl,
+                       bvx, bvy, bvalid, m)
+                n_batches += 1
                 m = near_lo = near_hi = 0
             pl = ((1 if p[k] else 0) if per_pol else 0) * rows
             _halo_event(k, (pl + y[k] - row0) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t, prev_lt,
-                        prev_pol, dec, dec_lt, burst, startup, agree, span, True)
+                        prev_pol, dec[par[y[k]]], dec_lt[par[y[k]]], burst, startup, agree, span, True)
         done += 1
-    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt, width,
-           height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
-    stats[0] += 1 if m > 0 else 0
+    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me], dec_lt[me],
+           width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
+    n_batches += 1 if m > 0 else 0
+    stats[0] += n_batches
+    stats[1] += n_deferred
     st[0] = cur
     st[1] = head
     st[2] = tail
@@ -443,7 +453,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
 @njit(parallel=True, cache=True)
 def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, qcnt, roff,
                     qrow, queue, qoff, lo, rows, own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx,
-                    out_vy, out_valid, stats, work):
+                    out_vy, out_valid, stats, work, par):
     """``n_threads`` workers share the strips: each takes any free strip, runs it (:func:`_run_strip`) for
     ``turn`` events or until it must wait, gives it back, and moves on.
 
@@ -454,7 +464,8 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
     queue front, or next with an empty queue, and needs no decision not yet
     taken (for a halo copy: of earlier events, or its owner's copy, which is as
     early and ready). ``stats[s]``: batches, deferred events, turns, turns that
-    ran nothing, per strip; ``work[th]``: the worker's CPU time (ns) in turns that
+    ran nothing, and (with a fifth column) the CPU time (ns) of its turns that
+    ran events, per strip; ``work[th]``: the worker's CPU time (ns) in turns that
     ran events, in the others, and its events.
     """
     half = kargs[2]
@@ -489,9 +500,12 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
                                       prev_pol[o0:o1], qcnt[o0:o1], qrow[roff[s]:roff[s + 1]],
                                       queue[qoff[s]:qoff[s + 1]], state[s], lo[s], rows[s], own_lo[s], own_hi[s],
                                       dec, dec_lt, width, height, kargs, out_lt[a:b], out_vx[a:b], out_vy[a:b],
-                                      out_valid[a:b], wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, stats[s])
+                                      out_valid[a:b], wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, stats[s], par, s % 2)
                     if done > 0:
-                        work[th, 0] += _clock_ns(_THREAD_CPU) - c0
+                        dt = _clock_ns(_THREAD_CPU) - c0
+                        work[th, 0] += dt
+                        if stats.shape[1] > 4:
+                            stats[s, 4] += dt
                     work[th, 2] += done
                     stats[s, 2] += 1
                     stats[s, 3] += 1 if done == 0 else 0
@@ -563,7 +577,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     t_start, reach_px, noise``: :func:`_run_strip` reads ``burst, per_pol, half``,
     ``startup`` and ``noise`` by position); ``outs`` is ``(lt, vx, vy, valid)``. The
     strips are cut where they hold about as many events (:func:`balanced_strips`) and shared by
-    ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64 ``(n_tiles, 4)``)
+    ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64
+    ``(n_tiles, 4)``, or 5 for the strips' CPU time)
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
     """
     half = kernel_args[2]
@@ -585,7 +600,10 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     for s in range(n_tiles):
         for g, l in zip(state, local):
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
-    dec = np.zeros(x.shape[0], np.int8)
+    dec = np.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
+    par = np.zeros(height, np.int64)
+    for s in range(n_tiles):
+        par[own_lo[s]:own_hi[s]] = s % 2
     # outputs per slot (each strip writes its own memory), then put in place
     slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     threads = min(n_tiles, numba.get_num_threads())
@@ -595,8 +613,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
         work = np.zeros((threads, 3), np.int64)
     _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0, idx,
                     starts, off, *local, np.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
-                    np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec, np.empty(x.shape[0]), width,
-                    height, tuple(kernel_args), *slot_outs, stats, work)
+                    np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
+                    np.empty((2, x.shape[0])), width, height, tuple(kernel_args), *slot_outs, stats, work, par)
     _put_owned(idx, starts, y, own_lo, own_hi, *slot_outs, *outs)
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
