@@ -36,11 +36,25 @@ per ``prange`` iteration; the estimator's strips are shared by
 numba's threads (:func:`_intra_parallel`): a worker runs any free strip until
 nothing in it can run, then moves to another.
 
+Edge image (halo 1 row)
+    A pixel's edge state changes only by its own events and by the clearing of
+    an 8-neighbour's event (``clear_behind``), which depends on that event alone;
+    a strip replaying its rows' events and one row on each side has the serial
+    state in its owned rows (:func:`edge_frames_tiled`).
+
+Cache lines: counters a strip updates often are kept in locals and added once
+per turn (the strips' ``stats`` rows share lines), and the owners publish their
+decisions in one of two arrays by the strip's parity, so that neighbouring
+strips never write the same line of ``dec`` / ``dec_lt``.
+
 Speed (``benchmarks/bench_detector.py --tiles 2``): the simulated schedule of
 these rules on idle workers (``benchmarks/_strip_schedule.py``, one unit per
 fit) gives 1.91x on ``stripes.mat`` and 2.00x on shapes_translation with 2
-strips, 7.1x / 6.1x with 8; the strips' extra CPU per event (halo replays,
-deferral checks) is measured beside it.
+strips, 7.1x / 6.1x with 8, 2.00x / 7.89x on the Gen4-sized input (stripes
+tiled on 1280x720); the strips' extra CPU per event (halo replays, deferral
+checks) is measured beside it: 1.04-1.11x on ``stripes.mat`` under load, 0.91x
+on the Gen4-sized input (a strip's state is smaller than the sensor's and
+fits the caches better).
 """
 
 from __future__ import annotations
