@@ -29,11 +29,16 @@ Beside them, in the same run:
 * the projection to a Prophesee Gen4 sensor (1280x720, 20 M events/s): cores
   needed = 20e6 x the measured CPU time per event of the full pipeline (buffer +
   estimator + edge image) / the strips' efficiency on 8 cores (simulated 8-strip
-  speedup / 8 / the strips' extra CPU);
+  speedup / 8 / the strips' extra CPU), and with detect's bookkeeping left on one
+  core; last, the whole of it on a Gen4-sized input (``tiled_stripes_gen4``:
+  ``stripes.mat`` tiled 10x6 on 1280x720, 0.1 s, ~1.6 M events; ``--only gen4``);
+* the edge frames run on the strips too (``edge_frames(..., n_tiles)``): the wall
+  speedup is printed for detect, for the edge frames and for both;
 * the machine's load (1-minute load average before and after, CPU count): the
   machine is shared, wall-clock figures depend on it.
 
-Run: ``.venv/bin/python benchmarks/bench_detector.py [--repeat 3] [--tiles 2] [--synthetic]``.
+Run: ``.venv/bin/python benchmarks/bench_detector.py [--repeat 3] [--tiles 2] [--synthetic] [--no-gen4]
+[--only stripes|shapes|gen4]``.
 
 What limits the speed (2026-12-01, CPU time, best of 3, load average ~8 on the
 2 CPUs): the intra-pixel estimator, ~0.52 us per kept event on stripes.mat and
