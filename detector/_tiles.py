@@ -36,11 +36,25 @@ per ``prange`` iteration; the estimator's strips are shared by
 numba's threads (:func:`_intra_parallel`): a worker runs any free strip until
 nothing in it can run, then moves to another.
 
+Edge image (halo 1 row)
+    A pixel's edge state changes only by its own events and by the clearing of
+    an 8-neighbour's event (``clear_behind``), which depends on that event alone;
+    a strip replaying its rows' events and one row on each side has the serial
+    state in its owned rows (:func:`edge_frames_tiled`).
+
+Cache lines: counters a strip updates often are kept in locals and added once
+per turn (the strips' ``stats`` rows share lines), and the owners publish their
+decisions in one of two arrays by the strip's parity, so that neighbouring
+strips never write the same line of ``dec`` / ``dec_lt``.
+
 Speed (``benchmarks/bench_detector.py --tiles 2``): the simulated schedule of
 these rules on idle workers (``benchmarks/_strip_schedule.py``, one unit per
 fit) gives 1.91x on ``stripes.mat`` and 2.00x on shapes_translation with 2
-strips, 7.1x / 6.1x with 8; the strips' extra CPU per event (halo replays,
-deferral checks) is measured beside it.
+strips, 7.1x / 6.1x with 8, 2.00x / 7.89x on the Gen4-sized input (stripes
+tiled on 1280x720); the strips' extra CPU per event (halo replays, deferral
+checks) is measured beside it: 1.04-1.11x on ``stripes.mat`` under load, 0.91x
+on the Gen4-sized input (a strip's state is smaller than the sensor's and
+fits the caches better).
 """
 
 from __future__ import annotations
@@ -52,7 +66,9 @@ import numpy as np
 from numba import njit, prange
 
 from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
+from ._checks import NEVER_US
 from ._buffer_kernels import _buffer_scan, new_state
+from ._edges_kernels import _DX, _DY, _edge_update
 from ._intra_kernels import _intra_stream, _scratch
 from ._noise_kernels import _AGREE, _BURST_SPAN
 
@@ -130,6 +146,86 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
     _buffer_tiles(x, y, t, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width, tau_us, causal,
                   supported)
     return supported
+
+
+# ---------------------------------------------------------------- edge image
+
+
+@njit(parallel=True, cache=True)
+def _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, rows, own_lo, own_hi, width, clear_behind,
+                invalid_clears, burst, times, order, out):
+    """Edge frames of every strip (one per ``prange`` iteration) at the sorted instants ``times``.
+
+    A strip replays the events of its rows and of one row on each side
+    (:func:`~evedge.detector._edges_kernels._edge_update` on its own state) and
+    writes its owned rows of frame ``order[i]`` at ``times[i]``.
+    """
+    for s in prange(lo.shape[0]):
+        sel = idx[starts[s]:starts[s + 1]]
+        n = sel.shape[0]
+        xs = np.empty(n, np.int64)
+        ys = np.empty(n, np.int64)
+        ts = np.empty(n, np.int64)
+        ls = np.empty(n)
+        us = np.empty(n)
+        ws = np.empty(n)
+        vs = np.empty(n, np.bool_)
+        ps = np.empty(n, np.int64)
+        for j in range(n):
+            k = sel[j]
+            xs[j] = x[k]
+            ys[j] = y[k] - lo[s]
+            ts[j] = t[k]
+            ls[j] = lt[k]
+            us[j] = vx[k]
+            ws[j] = vy[k]
+            vs[j] = valid[k]
+            ps[j] = p[k]
+        cells = rows[s] * width
+        last_t = np.full(cells, NEVER_US, np.int64)
+        expiry = np.full(cells, -np.inf)
+        start_t = np.full(cells, NEVER_US, np.int64)
+        prev_lt = np.full(cells, np.nan)
+        prev_pol = np.full(cells, -1, np.int8)
+        a = 0
+        r0 = own_lo[s] - lo[s]
+        r1 = own_hi[s] - lo[s]
+        for i in range(times.shape[0]):
+            tt = times[i]
+            b = a
+            while b < n and ts[b] <= tt:
+                b += 1
+            if b > a:
+                _edge_update(xs[a:b], ys[a:b], ts[a:b], ls[a:b], us[a:b], ws[a:b], vs[a:b], last_t, expiry, width,
+                             rows[s], clear_behind, invalid_clears, _DX, _DY, ps[a:b], burst, start_t, prev_lt,
+                             prev_pol)
+                a = b
+            f = order[i]
+            for r in range(r0, r1):
+                for c in range(width):
+                    q = r * width + c
+                    out[f, r + lo[s], c] = last_t[q] <= tt and tt < expiry[q]
+
+
+def edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, width: int, height: int, clear_behind: bool,
+                      invalid_clears: bool, burst: float, times: np.ndarray, order: np.ndarray, n_tiles: int,
+                      out: np.ndarray) -> None:
+    """Edge frames over ``n_tiles`` strips in parallel (halo one row): the serial frames, written into ``out``.
+
+    A pixel's state changes only by its own events and by the clearing of an
+    8-neighbour's event (``clear_behind``), which depends on that event alone
+    (its time, flow and validity), not on the neighbour pixel's state: a strip
+    that replays its rows' events and those of one row on each side has the
+    serial state in its owned rows. ``times`` are the instants sorted
+    (``times[i]`` is frame ``order[i]``); cut where the strips hold about as many
+    events (:func:`balanced_strips`).
+    """
+    own = balanced_strips(y, height, n_tiles)
+    lo = np.maximum(own[:, 0] - 1, 0)
+    hi = np.minimum(own[:, 1] + 1, height)
+    idx, starts = _strip_index(y, lo, hi)
+    _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width,
+                clear_behind, invalid_clears, burst, times, order, out)
 
 
 # ---------------------------------------------------------------- intra-pixel estimator
@@ -253,7 +349,7 @@ def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_
 @njit(cache=True)
 def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt, qrow, queue, st, row0, rows,
                own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos,
-               bidx, bl, bvx, bvy, bvalid, stats):
+               bidx, bl, bvx, bvy, bvalid, stats, par, me):
     """Run one strip for up to ``budget`` events, out of time order where that is provably the same.
 
     The strip's events are taken in time order from ``st[0]`` (cursor). An event
@@ -270,6 +366,11 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     :func:`_intra_stream` in batches; a halo event is replayed at once (after the
     batch when the batch holds events within ``half`` rows of it, which read its
     pixel). Returns the events run; ``stats[1]`` counts the deferred ones.
+
+    ``dec, dec_lt`` are ``(2, events)``: a strip publishes in row ``me`` (its index's
+    parity) and reads an event's decision in row ``par[y]`` (its owner's parity):
+    neighbouring strips write different arrays, so their writes of events close
+    in time do not share cache lines.
     """
     burst = kargs[0]
     per_pol = kargs[1]
@@ -287,6 +388,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
     near_lo = 0  # of which within half rows of the strip's first / last owned row
     near_hi = 0
     recheck = 0
+    n_batches = 0  # counted here, added to stats once: the strips' stats rows share cache lines
+    n_deferred = 0
     while done < budget:
         jp = -1
         looked = head < tail and done >= recheck
@@ -294,8 +397,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             k = seg[queue[head & mask]]
             pr = ((1 if p[k] else 0) if per_pol else 0) * rows + y[k] - row0
             if own_lo <= y[k] < own_hi or _halo_event(k, pr * width + x[k], t[k], np.int8(1 if p[k] else 0), sae,
-                                                      prev_t, prev_lt, prev_pol, dec, dec_lt, burst, startup, agree,
-                                                      span, False):
+                                                      prev_t, prev_lt, prev_pol, dec[par[y[k]]],
+                                                      dec_lt[par[y[k]]], burst, startup, agree, span, False):
                 jp = queue[head & mask]
                 head += 1
                 qrow[pr] -= 1
@@ -309,7 +412,8 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             later = head < tail and _queued_near(qrow, qcnt, pl, r, x[k], rows, width, half)
             if not later and not own_lo <= y[k] < own_hi:
                 later = not _halo_event(k, (pl + r) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t,
-                                        prev_lt, prev_pol, dec, dec_lt, burst, startup, agree, span, False)
+                                        prev_lt, prev_pol, dec[par[y[k]]], dec_lt[par[y[k]]], burst, startup, agree,
+                                        span, False)
             if not later:
                 jp = cur
             elif tail - head > mask:
@@ -319,7 +423,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
                 tail += 1
                 qrow[pl + r] += 1
                 qcnt[(pl + r) * width + x[k]] += 1
-                stats[1] += 1
+                n_deferred += 1
             cur += 1
         if jp < 0:
             if head < tail and not looked:
@@ -329,10 +433,10 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
         k = seg[jp]
         if own_lo <= y[k] < own_hi:
             if m == nb:
-                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt,
-                       width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy,
-                       bvalid, m)
-                stats[0] += 1
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me],
+                       dec_lt[me], width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl,
+                       bvx, bvy, bvalid, m)
+                n_batches += 1
                 m = near_lo = near_hi = 0
             bpos[m] = jp
             m += 1
@@ -340,18 +444,20 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             near_hi += 1 if y[k] >= own_hi - half else 0
         else:
             if (near_lo > 0 and y[k] < own_lo) or (near_hi > 0 and y[k] >= own_hi):
-                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt,
-                       width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy,
-                       bvalid, m)
-                stats[0] += 1
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me],
+                       dec_lt[me], width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl,
+                       bvx, bvy, bvalid, m)
+                n_batches += 1
                 m = near_lo = near_hi = 0
             pl = ((1 if p[k] else 0) if per_pol else 0) * rows
             _halo_event(k, (pl + y[k] - row0) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t, prev_lt,
-                        prev_pol, dec, dec_lt, burst, startup, agree, span, True)
+                        prev_pol, dec[par[y[k]]], dec_lt[par[y[k]]], burst, startup, agree, span, True)
         done += 1
-    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt, width,
-           height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
-    stats[0] += 1 if m > 0 else 0
+    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me], dec_lt[me],
+           width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
+    n_batches += 1 if m > 0 else 0
+    stats[0] += n_batches
+    stats[1] += n_deferred
     st[0] = cur
     st[1] = head
     st[2] = tail
@@ -361,7 +467,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
 @njit(parallel=True, cache=True)
 def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, qcnt, roff,
                     qrow, queue, qoff, lo, rows, own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx,
-                    out_vy, out_valid, stats, work):
+                    out_vy, out_valid, stats, work, par):
     """``n_threads`` workers share the strips: each takes any free strip, runs it (:func:`_run_strip`) for
     ``turn`` events or until it must wait, gives it back, and moves on.
 
@@ -372,7 +478,8 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
     queue front, or next with an empty queue, and needs no decision not yet
     taken (for a halo copy: of earlier events, or its owner's copy, which is as
     early and ready). ``stats[s]``: batches, deferred events, turns, turns that
-    ran nothing, per strip; ``work[th]``: the worker's CPU time (ns) in turns that
+    ran nothing, and (with a fifth column) the CPU time (ns) of its turns that
+    ran events, per strip; ``work[th]``: the worker's CPU time (ns) in turns that
     ran events, in the others, and its events.
     """
     half = kargs[2]
@@ -407,9 +514,12 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
                                       prev_pol[o0:o1], qcnt[o0:o1], qrow[roff[s]:roff[s + 1]],
                                       queue[qoff[s]:qoff[s + 1]], state[s], lo[s], rows[s], own_lo[s], own_hi[s],
                                       dec, dec_lt, width, height, kargs, out_lt[a:b], out_vx[a:b], out_vy[a:b],
-                                      out_valid[a:b], wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, stats[s])
+                                      out_valid[a:b], wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, stats[s], par, s % 2)
                     if done > 0:
-                        work[th, 0] += _clock_ns(_THREAD_CPU) - c0
+                        dt = _clock_ns(_THREAD_CPU) - c0
+                        work[th, 0] += dt
+                        if stats.shape[1] > 4:
+                            stats[s, 4] += dt
                     work[th, 2] += done
                     stats[s, 2] += 1
                     stats[s, 3] += 1 if done == 0 else 0
@@ -481,7 +591,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     t_start, reach_px, noise``: :func:`_run_strip` reads ``burst, per_pol, half``,
     ``startup`` and ``noise`` by position); ``outs`` is ``(lt, vx, vy, valid)``. The
     strips are cut where they hold about as many events (:func:`balanced_strips`) and shared by
-    ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64 ``(n_tiles, 4)``)
+    ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64
+    ``(n_tiles, 4)``, or 5 for the strips' CPU time)
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
     """
     half = kernel_args[2]
@@ -503,7 +614,10 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     for s in range(n_tiles):
         for g, l in zip(state, local):
             l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
-    dec = np.zeros(x.shape[0], np.int8)
+    dec = np.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
+    par = np.zeros(height, np.int64)
+    for s in range(n_tiles):
+        par[own_lo[s]:own_hi[s]] = s % 2
     # outputs per slot (each strip writes its own memory), then put in place
     slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     threads = min(n_tiles, numba.get_num_threads())
@@ -513,8 +627,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
         work = np.zeros((threads, 3), np.int64)
     _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0, idx,
                     starts, off, *local, np.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
-                    np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec, np.empty(x.shape[0]), width,
-                    height, tuple(kernel_args), *slot_outs, stats, work)
+                    np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
+                    np.empty((2, x.shape[0])), width, height, tuple(kernel_args), *slot_outs, stats, work, par)
     _put_owned(idx, starts, y, own_lo, own_hi, *slot_outs, *outs)
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]

@@ -38,6 +38,9 @@ import numpy as np
 from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
                       columns, validated)
 from ._edges_kernels import _DX, _DY, _edge_update
+from ._tiles import check_n_tiles, edge_frames_tiled
+
+_INT64_MAX = np.iinfo(np.int64).max
 
 __all__ = ["DISPLAYS", "DISPLAY_BURST_LIFETIMES", "PRIMARY_DISPLAY", "EdgeImage", "display_clear_behind",
            "edge_frames"]
@@ -156,7 +159,7 @@ class EdgeImage:
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
                 invalid: str = "ignore", burst_lifetimes: float | None = None, *,
-                display: str | None = None) -> np.ndarray:
+                display: str | None = None, n_tiles: int = 1) -> np.ndarray:
     """Edge maps at the given instants (one-shot form of :class:`EdgeImage`).
 
     Parameters
@@ -170,6 +173,9 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
         Instants in us, any order; events with ``t <= T`` count for instant ``T``.
     clear_behind, invalid, burst_lifetimes, display
         As in :class:`EdgeImage`.
+    n_tiles : int
+        Row strips run in parallel (numba threads; :func:`evedge.detector._tiles.edge_frames_tiled`):
+        the same frames, byte for byte, for any count. 1 = serial.
 
     Returns
     -------
@@ -184,10 +190,22 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
         raise ValueError(f"times_us: expected a 1-D array of numbers, got shape {times.shape} dtype {times.dtype}")
     if times.size and not np.all(np.isfinite(times)):
         raise ValueError("times_us: non-finite instant")
+    n_tiles = check_n_tiles(n_tiles, sensor_size.height)
     out = np.zeros((times.size, *sensor_size.shape), dtype=bool)
     image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst_lifetimes,
                       display=display)
     order = np.argsort(times, kind="stable")
+    if n_tiles > 1 and times.size and events.size:
+        x, y, t, p = columns(events)
+        # the instants as the serial comparisons see them (int64 / float64 against the int64 times)
+        sorted_t = times[order].astype(np.float64 if times.dtype.kind == "f" or times.max() > _INT64_MAX
+                                       else np.int64)
+        edge_frames_tiled(x, y, t, np.ascontiguousarray(lifetimes["lifetime_us"]),
+                          np.ascontiguousarray(lifetimes["vx_px_s"]), np.ascontiguousarray(lifetimes["vy_px_s"]),
+                          np.ascontiguousarray(lifetimes["valid"]), p, sensor_size.width, sensor_size.height,
+                          image.clear_behind, image.invalid == "clear", image.burst_lifetimes, sorted_t, order,
+                          n_tiles, out)
+        return out
     ends = np.searchsorted(events["t"], times[order], side="right")
     start = 0
     with validated(events, sensor_size):  # slices of checked events: each chunk's check is O(1)

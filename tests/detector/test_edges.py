@@ -176,3 +176,47 @@ def test_burst_aware_expiry_counts_from_the_burst_s_first_event():
 def test_burst_lifetimes_refuses_a_negative_value():
     with pytest.raises(ValueError, match="burst_lifetimes"):
         EdgeImage(S, burst_lifetimes=-1)
+
+
+@pytest.mark.parametrize("clear_behind", [False, True])
+@pytest.mark.parametrize("invalid", ["ignore", "clear"])
+@pytest.mark.parametrize("burst", [0.0, 1.0])
+def test_strips_give_the_serial_frames(random_events, clear_behind, invalid, burst):
+    """Row strips in parallel (n_tiles, halo one row: a neighbour's events clear across the cut) == serial, bytes;
+    instants unsorted, repeated, between and beyond the events, float and int."""
+    size = SensorSize(24, 20)
+    ev = random_events(6000, size.width, size.height, duration_us=40_000, rng=7)
+    lts = random_lifetimes(ev.size, 8)
+    lts["lifetime_us"] *= 20  # lives of a few ms: pixels alive across many frames and many clearings
+    for times in (np.r_[np.arange(0, 45_000, 700)[::-1], 300, 300, -5], np.linspace(-10.0, 41_000.5, 37)):
+        serial = edge_frames(ev, lts, size, times, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst)
+        assert serial.any(axis=(1, 2)).sum() > times.size // 2  # most frames show edges
+        for n in (2, 3, 5, 20):
+            tiled = edge_frames(ev, lts, size, times, clear_behind=clear_behind, invalid=invalid,
+                                burst_lifetimes=burst, n_tiles=n)
+            assert tiled.tobytes() == serial.tobytes(), n
+
+
+def test_strips_on_real_lifetimes(stripes_events):
+    """The estimator's lifetimes on the real recording (fast edges, the clearing crosses the strips' cuts)."""
+    from evedge.detector import estimate_lifetimes
+
+    size = SensorSize(128, 128)
+    ev = stripes_events[:40_000]
+    lts = estimate_lifetimes(ev, size)
+    times = np.arange(int(ev["t"][0]), int(ev["t"][-1]) + 5000, 2500)
+    for display in ("predecessor", "lifetime_only"):
+        serial = edge_frames(ev, lts, size, times, display=display)
+        for n in (2, 7):
+            assert edge_frames(ev, lts, size, times, display=display, n_tiles=n).tobytes() == serial.tobytes(), n
+
+
+def test_strips_errors_and_empty():
+    ev = make_events([1, 2], [3, 4], [10, 20], [True, False])
+    lts = random_lifetimes(2, 0)
+    with pytest.raises(ValueError, match="n_tiles"):
+        edge_frames(ev, lts, S, [15], n_tiles=9)
+    with pytest.raises(TypeError, match="n_tiles"):
+        edge_frames(ev, lts, S, [15], n_tiles=2.0)
+    assert edge_frames(ev[:0], lts[:0], S, [5, 6], n_tiles=3).shape == (2, 8, 10)
+    assert edge_frames(ev, lts, S, [], n_tiles=3).shape == (0, 8, 10)
