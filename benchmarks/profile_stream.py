@@ -41,8 +41,8 @@ from evedge.detector.intra import IntraParams, noise_args  # noqa: E402
 STAGES = (0, 1, 2, 3, 4)
 
 
-def _instrumented():
-    src = inspect.getsource(K)
+def _instrumented(src=None):
+    src = inspect.getsource(K) if src is None else src
     src = src.replace("cache=True", "cache=False")
     src = re.sub(r"from \.(\w+) import", r"from evedge.detector.\1 import", src)
     fit = src[src.index("@njit(cache=False)\ndef _fit_points("):src.index("@njit(cache=False)\ndef _event_on_plane")]
@@ -78,8 +78,12 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
     b = src.index("@njit(cache=False)\ndef _fit_windows(")
     st = src[a:b]
     st = st.replace("out_valid, wf, wi, ls_first):", "out_valid, wf, wi, ls_first, rec, stage):")
-    st = st.replace("n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)",
-                    "n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest) if stage != 0 else 0")
+    if "n, big = _gather(" in st:
+        st = st.replace("= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)",
+                        "= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest) if stage != 0 else (0, 0)")
+    else:  # before the gather returned (n, big)
+        st = st.replace("= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)",
+                        "= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest) if stage != 0 else 0")
     st = st.replace("jump_check, noise, ls_first)", "jump_check, noise, ls_first, rec, 2 * k + attempt, stage)")
     assert "2 * k + attempt" in st and "if stage != 0" in st
     src = src[:a] + st
@@ -113,10 +117,20 @@ def run(mod, events, size, pr, rec, stage):
 
 def main(argv=None):
     ap = argparse.ArgumentParser()
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=15)
+    ap.add_argument("--base", help="also the kernels of this git revision, alternated with today's (one run)")
+    ap.add_argument("--stages", default="0,1,2,3,4")
+    ap.add_argument("--limit", type=int, default=150_000, help="first kept events timed (short runs, many repeats)")
     args = ap.parse_args(argv)
+    stages = tuple(int(v) for v in args.stages.split(","))
     pr = IntraParams()
-    mod = _instrumented()
+    mods = {"today": _instrumented()}
+    if args.base:
+        import subprocess
+
+        old = subprocess.run(["git", "show", f"{args.base}:detector/_intra_kernels.py"], check=True,
+                             capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1]).stdout
+        mods = {args.base: _instrumented(old), **mods}
     data = {}
     shapes = simulated_shapes()
     if shapes is not None:
@@ -128,22 +142,30 @@ def main(argv=None):
           f"best of {args.repeat}")
     names = ["0 bookkeeping", "1 +gather", "2 +2-means", "3 +compact+LS", "4 full fit"]
     for name, (ev, size) in data.items():
-        sub = ev[filter_events(ev, size)]
+        sub = ev[filter_events(ev, size)][: args.limit]
         rec = np.zeros((2 * sub.size, 3))
-        run(mod, sub[:2000], size, pr, rec, -1)  # compile
-        _, lt_ref = run(mod, sub, size, pr, rec, -1)
-        best = {s: np.inf for s in STAGES}
+        lt_ref = None
+        for mod in mods.values():
+            run(mod, sub[:2000], size, pr, rec, -1)  # compile
+            _, lt = run(mod, sub, size, pr, rec, -1)
+            assert lt_ref is None or np.array_equal(lt, lt_ref, equal_nan=True), "revisions differ"
+            lt_ref = lt
+        best = {(v, s): np.inf for v in mods for s in stages}
         for _ in range(args.repeat):
-            for s in STAGES:
-                dt, lt = run(mod, sub, size, pr, rec, s)
-                assert np.array_equal(lt, lt_ref, equal_nan=True)
-                best[s] = min(best[s], dt)
-        prev = 0.0
-        print(f"{name} ({sub.size} kept events)")
-        for s, label in zip(STAGES, names):
-            ns = best[s] / sub.size * 1e9
-            print(f"  {label:16s} {ns:6.0f} ns  (+{ns - prev:5.0f})")
-            prev = ns
+            for s in stages:
+                for v, mod in mods.items():
+                    dt, lt = run(mod, sub, size, pr, rec, s)
+                    assert np.array_equal(lt, lt_ref, equal_nan=True)
+                    best[v, s] = min(best[v, s], dt)
+        print(f"{name} ({sub.size} kept events)" + "".join(f"{v:>22s}" for v in mods))
+        prev = {v: 0.0 for v in mods}
+        for s in stages:
+            row = f"  {names[s]:16s}"
+            for v in mods:
+                ns = best[v, s] / sub.size * 1e9
+                row += f" {ns:6.0f} ns (+{ns - prev[v]:5.0f})"
+                prev[v] = ns
+            print(row)
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 
