@@ -347,54 +347,16 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
                 break
             for i in range(n):
                 wi[_LAB, i] = 1
-        # least-squares sums over the whole cluster (least squares first); the current event (origin)
-        # adds 1 to the count only
-        s1 = 1.0
-        sx = 0.0
-        sy = 0.0
-        st = 0.0
-        sxx = 0.0
-        sxy = 0.0
-        syy = 0.0
-        sxt = 0.0
-        syt = 0.0
         m = 0
-        if ls_first > 0.0:
-            # the compaction below, with the sums of the kept points in the same order (branch-free: a
-            # weight of 0 or 1; adding 0.0 changes no sum)
-            for i in range(n):
-                wi[_INL, i] = 0
-                wi[_IDX, m] = i
-                xq = wf[_DX, i]
-                yq = wf[_DY, i]
-                tq = wf[_DT, i]
-                wf[_KX, m] = xq
-                wf[_KY, m] = yq
-                wf[_KT, m] = tq
-                kept = wi[_LAB, i] == 1
-                wq = 1.0 if kept else 0.0
-                s1 += wq
-                xw = xq * wq
-                yw = yq * wq
-                sx += xw
-                sy += yw
-                st += tq * wq
-                sxx += xw * xq
-                sxy += xw * yq
-                syy += yw * yq
-                sxt += xw * tq
-                syt += yw * tq
-                m += 1 if kept else 0
-        else:
-            for i in range(n):
-                wi[_INL, i] = 0
-                # branch-free compaction into contiguous copies of the kept points (the
-                # trial loop reads them directly); a slot is overwritten unless kept
-                wi[_IDX, m] = i
-                wf[_KX, m] = wf[_DX, i]
-                wf[_KY, m] = wf[_DY, i]
-                wf[_KT, m] = wf[_DT, i]
-                m += 1 if wi[_LAB, i] == 1 else 0
+        for i in range(n):
+            wi[_INL, i] = 0
+            # branch-free compaction into contiguous copies of the kept points (the
+            # trial loop reads them directly); a slot is overwritten unless kept
+            wi[_IDX, m] = i
+            wf[_KX, m] = wf[_DX, i]
+            wf[_KY, m] = wf[_DY, i]
+            wf[_KT, m] = wf[_DT, i]
+            m += 1 if wi[_LAB, i] == 1 else 0
         if m < 2 or m + 1 < min_points:
             nin = -1
             continue
@@ -405,12 +367,35 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         best_slack = 0.0
         best_thr = 0.0
         trials = max_trials
+        # least-squares sums over the whole cluster; the current event (origin) adds 1 to the count only
+        s1 = 1.0
+        sx = 0.0
+        sy = 0.0
+        st = 0.0
+        sxx = 0.0
+        sxy = 0.0
+        syy = 0.0
+        sxt = 0.0
+        syt = 0.0
         full = False
         if ls_first > 0.0:
             # least squares first: the plane through the current event fitted to the whole cluster;
             # when every point is its inlier (within ls_first times the threshold) no hypothesis can
             # have more, and the refit on all points is the result: no trial (same sums, same
             # order as the refit below)
+            for q in range(m):
+                xq = wf[_KX, q]
+                yq = wf[_KY, q]
+                tq = wf[_KT, q]
+                s1 += 1.0
+                sx += xq
+                sy += yq
+                st += tq
+                sxx += xq * xq
+                sxy += xq * yq
+                syy += yq * yq
+                sxt += xq * tq
+                syt += yq * tq
             det0 = sxx * syy - sxy * sxy
             if det0 > 1e-9 * (sxx * syy):
                 a = (sxt * syy - syt * sxy) / det0
@@ -667,28 +652,24 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 
     Fills ``wf[_DX/_DY/_DT]`` and ``wi[_IT]``; never-fired pixels and pixels outside
     the sensor (rows ``0 .. height - 1`` of the plane) are not points, nor is the
-    centre. Returns ``(n, big)``: the number of points and their largest ``|dt|`` (us).
-
+    centre. Returns the number of points.
     """
     n = 0
-    big = 0
     # clipped ranges: the same cells in the same order as testing each against the sensor
     for yy in range(max(yk - half, 0), min(yk + half, height - 1) + 1):
         row = base + yy * width
         oy = yy - yk
-        fy = float(oy)
         for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
             v = sae[row + xx]
             if v == _NEVER or v < oldest or (xx == xk and oy == 0):
                 continue
             d = v - tk
-            wf[_DX, n] = float(xx - xk)
-            wf[_DY, n] = fy
+            wf[_DX, n] = xx - xk
+            wf[_DY, n] = oy
             wf[_DT, n] = float(d)
             wi[_IT, n] = d
-            big = max(big, abs(d))
             n += 1
-    return n, big
+    return n
 
 
 @njit(cache=True)
@@ -780,7 +761,10 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             oldest = _NEVER
             if not (cont or trial) and prev_pol[si] == pk:
                 oldest = _stale_cutoff(tk, prev_t[si], prev_lt[si], stale_frac, half)
-            n, big = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)
+            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)
+            big = 0
+            for i in range(n):
+                big = max(big, abs(wi[_IT, i]))
             ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
                                    thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
                                    fallback, gap_ratio, on_plane, jump_check, noise, ls_first)
