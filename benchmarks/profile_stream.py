@@ -115,7 +115,6 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
 
 def run(mod, events, size, pr, rec, stage):
     x, y, t, p = (np.ascontiguousarray(events[c]).astype(np.int64) for c in ("x", "y", "t", "p"))
-    p = p.astype(np.bool_) if False else p
     n = x.size
     w, h = size.width, size.height
     planes = 2 if pr.per_polarity else 1
