@@ -67,7 +67,7 @@ from numba import njit, prange
 
 from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
 from ._checks import NEVER_US
-from ._buffer_kernels import _buffer_scan, new_state
+from ._buffer_kernels import _buffer_scan, _line_scan, new_line_state, new_state
 from ._edges_kernels import _DX, _DY, _edge_update
 from ._intra_kernels import _intra_stream, _scratch
 from ._noise_kernels import _AGREE, _BURST_SPAN
@@ -110,7 +110,8 @@ def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
 
 
 @njit(parallel=True, cache=True)
-def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_us, causal, supported):
+def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_us, causal, supported, line_us=0,
+                  line_tol=0.5, line_quiet=2.0, line_count=1):
     for s in prange(lo.shape[0]):
         sel = idx[starts[s]:starts[s + 1]]
         n = sel.shape[0]
@@ -127,13 +128,17 @@ def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_
         sup = np.empty(n, np.bool_)
         _buffer_scan(xs, ys, ts, ps, np.empty(n, np.int64), sup, 0, 0, new_state(width, rows[s]), width, rows[s],
                      tau_us, causal)
+        if line_us > 0:  # the line rule reads only pixels within one of the event it supports: the halo suffices
+            _line_scan(xs, ys, ts, ps, sup, 0, 0, new_line_state(width, rows[s]), width, rows[s], line_us, line_tol,
+                       line_quiet, line_count)
         for j in range(n):
             k = sel[j]
             if own_lo[s] <= y[k] < own_hi[s]:
                 supported[k] = sup[j]
 
 
-def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool, n_tiles: int) -> np.ndarray:
+def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool, n_tiles: int, line_us: int = 0,
+                 line_tol: float = 0.5, line_quiet: float = 2.0, line_count: int = 1) -> np.ndarray:
     """The event buffer's decisions over ``n_tiles`` strips in parallel (halo one row): the serial ones.
 
     The strips are cut where they hold about as many events (:func:`balanced_strips`).
@@ -144,7 +149,7 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
     idx, starts = _strip_index(y, lo, hi)
     supported = np.zeros(x.shape[0], bool)
     _buffer_tiles(x, y, t, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width, tau_us, causal,
-                  supported)
+                  supported, line_us, line_tol, line_quiet, line_count)
     return supported
 
 

@@ -33,9 +33,8 @@ Line rule (``line_window_us``, a departure from the paper, off by default; :func
     ``line_window_us``, when its pixel was quiet before (``line_quiet`` times
     the span) and, with ``line_count = 2``, midway between a second pair of
     opposite neighbours too. Every pixel it reads is within one of the event
-    it keeps, so strips with a one-row halo stay exact (tested on the kernels;
-    :mod:`._tiles` does not pass the rule yet, so ``n_tiles > 1`` runs it
-    serially, same decisions). Measured (``benchmarks/robustness_grid.py
+    it keeps, so strips with a one-row halo stay exact (``n_tiles > 1`` runs it
+    on the strips; tests compare the decisions with the serial ones). Measured (``benchmarks/robustness_grid.py
     --quick``, ``noise_params()``, README "Robustness"): one pair, 100 ms:
     noise kept by the buffer 37.3 -> 41.8 %, noise given a lifetime 6.2 ->
     7.0 %; two pairs (the preset: 150 ms, tolerance 0.7): 38.9 % and 6.7 %,
@@ -303,9 +302,9 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
     w, h = sensor_size.width, sensor_size.height
     x, y, t, p = columns(events)
     n = events.shape[0]
-    if n_tiles > 1 and not params.line_window_us:
-        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles)
-    # (the line rule runs serially for now: same decisions, see the module notes, "line rule")
+    if n_tiles > 1:
+        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles,
+                            params.line_window_us, params.line_tolerance, params.line_quiet, params.line_count)
     supported = np.empty(n, dtype=bool)  # every entry set by the kernel, as is prev
     _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h,
                  params.tau_min_us, params.mode == "causal")
