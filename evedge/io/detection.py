@@ -65,8 +65,11 @@ class Detection:
     sensor_size : SensorSize
     events : numpy.ndarray or None
         EVENT_DTYPE events the method saw (None: only their digest is in ``metadata["source"]``).
-    lifetimes : numpy.ndarray or None
-        Structured per-event columns :data:`LIFETIME_COLUMNS` (lifetime methods).
+    lifetimes : numpy.ndarray, dict or None
+        Structured per-event columns :data:`LIFETIME_COLUMNS` (lifetime methods); for
+        :func:`write_detection` also a dict of those columns as 1-D arrays (what
+        ``evedge detect`` hands it, so that each can be freed once written);
+        :func:`read_detection` gives the structured array.
     edges : Frames or None
         Edge frames with their times.
     metadata : dict
