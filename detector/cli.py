@@ -140,16 +140,17 @@ def _method_help() -> str:
 
 
 def _estimate(method, events, sensor, filter_name, filter_params, params, frame_t, display, quiet, ahead=None):
-    """The per-event table (LIFETIME_COLUMNS: estimates, NaN where none, and the filter's
-    keep mask) and the edge frames at ``frame_t``, in one pass over chunks of the events.
+    """The per-event table (a dict of the LIFETIME_COLUMNS, one array each: estimates, NaN where
+    none, and the filter's keep mask) and the edge frames at ``frame_t``, in one pass over chunks of the events.
 
     Each chunk's kept events go through the estimator and then the edge image
     (frames taken at the instants inside the chunk, as :func:`edge_frames` takes
     them); their estimates are written into the table in place. No copy of the
     kept events or of their estimates is made: here the peak is the filter's keep
-    mask, ~45 bytes per event above the events (its int64 columns); the command's
-    peak, ~100 bytes per event, is the writing of detection.h5, built in memory
-    (``benchmarks/bench_cli.py``).
+    mask, ~45 bytes per event above the events (its int64 columns). detection.h5 is
+    built in memory (``write_detection``) and frees each column once it is in the
+    file image (``release_columns``): the image (39 bytes per event) replaces the
+    table (26) rather than adding to it (``benchmarks/bench_cli.py``).
 
     ``ahead`` (:func:`evedge.detector._precompile.start`): a child compiling the
     estimator's kernel into numba's cache meanwhile; the buffer (compiled and run
@@ -166,8 +167,8 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
 
     kept = keep_mask(filter_name, events, sensor, filter_params) if filter_name else np.ones(events.size, bool)
     est = make_method(method, sensor, params, kind="estimator")
-    table = np.empty(events.size, dtype=list(LIFETIME_COLUMNS))
-    table["kept"] = kept
+    # one array per column (not a structured table): write_detection frees each once it is in the file image
+    table = {name: (kept if name == "kept" else np.empty(events.size, dtype)) for name, dtype in LIFETIME_COLUMNS}
     image = EdgeImage(sensor, display=display)
     if ahead is not None:
         _compile_edges(sensor, display)  # while the child compiles the estimator
@@ -179,13 +180,12 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     with tqdm(total=events.size, unit="ev", desc="lifetimes", disable=quiet) as bar:
         for start in range(0, events.size, _CHUNK):
             stop = min(start + _CHUNK, events.size)
-            rows = table[start:stop]
             keep = kept[start:stop]
             chunk = events[start:stop].compress(keep)  # (faster than boolean indexing on records)
             with validated(chunk, sensor):  # a subset, in order, of checked events: the stages' checks are O(1)
                 lt = _check_estimate(method, est.process(chunk), chunk.size)
                 for name in lt.dtype.names:
-                    col = rows[name]
+                    col = table[name][start:stop]
                     col[...] = False if name == "valid" else np.nan
                     col[keep] = lt[name]
                 # the edge image, frame by frame inside the chunk
@@ -452,10 +452,14 @@ def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort
                        "format": rec.metadata.get("format"), "sorted_on_load": bool(rec.metadata.get("sorted_on_load", False))},
             "events_embedded": bool(embed_events), "frame_times": "--at-frames" if at_frames else "--times" if times is not None else f"--fps {fps:g}",
             "versions": _versions(), "command": "evedge detect"}
+    n_events, n_kept = events.size, int(kept.sum()) if kept is not None else 0
+    n_valid = int(table["valid"].sum()) if table is not None else 0
     det = Detection(size, events if embed_events else None, table, Frames(frame_t, np.asarray(frames, bool)), meta)
+    if video is None:  # write_detection frees the events and the per-event columns as they go into the file image
+        events = kept = rec = None
     try:
         with staged_folder(out, allowed=_OUTPUT_NAMES) as stage:
-            write_detection(stage / "detection.h5", det, compress_per_event=compress)
+            write_detection(stage / "detection.h5", det, compress_per_event=compress, release_columns=video is None)
             if write_png:
                 _write_pngs(stage / "edges", frame_t, frames, quiet)
     except OutputExistsError as err:
@@ -469,7 +473,7 @@ def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort
             _write_video(video, rec, det, table, kept, video_colour, fps, quiet)
     except OSError as err:
         raise click.ClickException(f"cannot write the video {video}: {err}") from None
-    msg = f"{events.size} events, {frame_t.size} edge frames -> {out}"
+    msg = f"{n_events} events, {frame_t.size} edge frames -> {out}"
     if table is not None:
-        msg += f"; {int(kept.sum())} passed to the estimator, {int(table['valid'].sum())} with a lifetime"
+        msg += f"; {n_kept} passed to the estimator, {n_valid} with a lifetime"
     click.echo(msg)

@@ -65,8 +65,11 @@ class Detection:
     sensor_size : SensorSize
     events : numpy.ndarray or None
         EVENT_DTYPE events the method saw (None: only their digest is in ``metadata["source"]``).
-    lifetimes : numpy.ndarray or None
-        Structured per-event columns :data:`LIFETIME_COLUMNS` (lifetime methods).
+    lifetimes : numpy.ndarray, dict or None
+        Structured per-event columns :data:`LIFETIME_COLUMNS` (lifetime methods); for
+        :func:`write_detection` also a dict of those columns as 1-D arrays (what
+        ``evedge detect`` hands it, so that each can be freed once written);
+        :func:`read_detection` gives the structured array.
     edges : Frames or None
         Edge frames with their times.
     metadata : dict
@@ -94,20 +97,53 @@ def file_sha256(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def _dataset(group, name: str, data: np.ndarray, compress: bool = True) -> None:
+#: Rows of a per-event column written at a time (a multiple of ``_CHUNK``: every write covers whole chunks).
+_WRITE_ROWS = 1 << 20
+
+
+def _dataset(group, name: str, data: np.ndarray, compress: bool = True, dtype=None) -> None:
+    """Dataset ``name`` holding ``data`` (as ``dtype``) in ``group``.
+
+    A 1-D ``data`` (e.g. a field of a structured array: strided) is written
+    ``_WRITE_ROWS`` rows at a time, so no contiguous copy of the whole column
+    is made; the file's bytes are those of one whole write.
+    """
+    dtype = np.dtype(data.dtype if dtype is None else dtype)
     options = {"track_times": False}
     if data.size and compress:
         chunks = (max(1, min(data.shape[0], _CHUNK if data.ndim == 1 else 1)),) + data.shape[1:]
         options.update(chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
-    group.create_dataset(name, data=data, **options)
+    if data.ndim != 1 or data.shape[0] <= _WRITE_ROWS:
+        group.create_dataset(name, data=np.asarray(data, dtype=dtype), **options)
+        return
+    ds = group.create_dataset(name, shape=data.shape, dtype=dtype, **options)
+    for start in range(0, data.shape[0], _WRITE_ROWS):
+        part = np.ascontiguousarray(data[start:start + _WRITE_ROWS], dtype=dtype)
+        ds[start:start + part.shape[0]] = part
 
 
-def write_detection(path: str | os.PathLike, detection: Detection, *, compress_per_event: bool = False) -> Path:
+def write_detection(path: str | os.PathLike, detection: Detection, *, compress_per_event: bool = False,
+                    release_columns: bool = False) -> Path:
     """Write a :class:`Detection` (temporary file, then rename).
 
     The edge frames are gzip-compressed; the per-event columns (events, lifetimes)
     only with ``compress_per_event``: gzip costs ~0.9 us per event (about as much
     as the whole detector) for a file ~2x smaller; readers see no difference.
+
+    Parameters
+    ----------
+    path : path-like
+    detection : Detection
+        ``lifetimes`` may also be a dict of the :data:`LIFETIME_COLUMNS` as 1-D
+        arrays of one length (the same file as the structured array).
+    compress_per_event : bool
+    release_columns : bool
+        Take ownership of the per-event arrays: ``detection.events`` is set to
+        None once the events are in the file image (built in memory) and, with
+        ``lifetimes`` a dict, each column is removed from it once it is in the
+        image (the dict is left empty, also when the write fails), so that
+        their memory is freed while the image grows when the caller holds no
+        other reference (``evedge detect``).
 
     Raises
     ------
@@ -122,27 +158,44 @@ def write_detection(path: str | os.PathLike, detection: Detection, *, compress_p
     if ev is not None and (not isinstance(ev, np.ndarray) or ev.dtype != EVENT_DTYPE):
         raise TypeError(f"write_detection: events must be EVENT_DTYPE, got {getattr(ev, 'dtype', type(ev))}")
     lt = detection.lifetimes
+    n_rows = None
     if lt is not None:
-        missing = [n for n, _ in LIFETIME_COLUMNS if n not in (lt.dtype.names or ())]
+        names = tuple(lt) if isinstance(lt, dict) else (lt.dtype.names or ())
+        missing = [n for n, _ in LIFETIME_COLUMNS if n not in names]
         if missing:
             raise ValueError(f"write_detection: lifetimes lack columns {missing}")
-        if ev is not None and lt.shape[0] != ev.shape[0]:
-            raise ValueError(f"write_detection: {lt.shape[0]} lifetime rows for {ev.shape[0]} events")
+        if isinstance(lt, dict):
+            shapes = {n: np.shape(lt[n]) for n, _ in LIFETIME_COLUMNS}
+            if len(set(shapes.values())) != 1 or len(next(iter(shapes.values()))) != 1:
+                raise ValueError(f"write_detection: the lifetimes columns must be 1-D of one length, got {shapes}")
+            n_rows = next(iter(shapes.values()))[0]
+        else:
+            n_rows = lt.shape[0]
+        if ev is not None and n_rows != ev.shape[0]:
+            raise ValueError(f"write_detection: {n_rows} lifetime rows for {ev.shape[0]} events")
     metadata = _metadata_json(detection.metadata, "write_detection: metadata")
     path = Path(path)
-    with _new_file(path, "write_detection", DETECTION_FORMAT, DETECTION_FORMAT_VERSION, size, metadata) as f:
-        if ev is not None:
-            g = f.create_group("events", track_order=True)
-            for name in ("x", "y", "t", "p"):
-                _dataset(g, name, np.ascontiguousarray(ev[name]), compress_per_event)
-        if lt is not None:
-            g = f.create_group("lifetimes", track_order=True)
-            for name, dtype in LIFETIME_COLUMNS:
-                _dataset(g, name, np.ascontiguousarray(lt[name], dtype=dtype), compress_per_event)
-        if detection.edges is not None:
-            g = f.create_group("edges", track_order=True)
-            _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
-            _dataset(g, "images", np.asarray(detection.edges.images, bool))
+    try:
+        with _new_file(path, "write_detection", DETECTION_FORMAT, DETECTION_FORMAT_VERSION, size, metadata) as f:
+            if ev is not None:
+                g = f.create_group("events", track_order=True)
+                for name in ("x", "y", "t", "p"):
+                    _dataset(g, name, ev[name], compress_per_event)  # written in slices: no whole-column copy
+                if release_columns:
+                    detection.events = ev = None  # freed now if the caller holds no other reference
+            if lt is not None:
+                g = f.create_group("lifetimes", track_order=True)
+                for name, dtype in LIFETIME_COLUMNS:
+                    _dataset(g, name, np.asarray(lt[name]), compress_per_event, dtype)
+                    if release_columns and isinstance(lt, dict):
+                        del lt[name]  # its memory freed now, while the image grows
+            if detection.edges is not None:
+                g = f.create_group("edges", track_order=True)
+                _dataset(g, "t_us", np.asarray(detection.edges.t_us, np.int64))
+                _dataset(g, "images", np.asarray(detection.edges.images, bool))
+    finally:
+        if release_columns and isinstance(lt, dict):
+            lt.clear()
     return path
 
 

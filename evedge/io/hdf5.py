@@ -199,9 +199,30 @@ def _new_hash(dtype: np.dtype, shape: tuple):
     return h
 
 
+def _bytes_of(data: np.ndarray) -> np.ndarray:
+    """The bytes of ``data`` in C order as a uint8 view (copied only when ``data`` is not C-contiguous)."""
+    return np.ascontiguousarray(data).reshape(-1).view(np.uint8)
+
+
 def _data_digest(data: np.ndarray) -> str:
     h = _new_hash(data.dtype, data.shape)
-    h.update(np.ascontiguousarray(data).tobytes())
+    h.update(_bytes_of(data))  # the same bytes as ``tobytes()``, not copied
+    return h.hexdigest()
+
+
+#: Rows of a dataset hashed at a time by :func:`seal` (the digest is that of the whole array's bytes).
+_SEAL_ROWS = 1 << 20
+
+
+def _dataset_digest(ds) -> str:
+    """:func:`_data_digest` of an HDF5 dataset, read ``_SEAL_ROWS`` rows at a time (no whole copy in memory)."""
+    h = _new_hash(ds.dtype, ds.shape)
+    if ds.ndim == 0 or ds.shape[0] == 0:
+        h.update(_bytes_of(np.asarray(ds[()])))
+        return h.hexdigest()
+    step = max(1, _SEAL_ROWS // max(1, math.prod(ds.shape[1:])))
+    for start in range(0, ds.shape[0], step):
+        h.update(_bytes_of(ds[start:start + step]))
     return h.hexdigest()
 
 
@@ -219,7 +240,7 @@ def seal(f) -> None:
 
     def visit(name, obj):
         if isinstance(obj, h5py.Dataset):
-            sums[name] = _data_digest(obj[()])
+            sums[name] = _dataset_digest(obj)
 
     f.visititems(visit)
     sums["@attrs"] = _attrs_digest(f.attrs)
@@ -723,7 +744,7 @@ def iter_hdf5_events(path: str | os.PathLike, chunk_size: int = 1_000_000) -> It
                 place[:] = [f"dataset {full!r}"]
                 h = _new_hash(ds.dtype, ds.shape)
                 for start in range(0, n, max(chunk_size, _HASH_BLOCK)):
-                    h.update(np.ascontiguousarray(ds[start:start + max(chunk_size, _HASH_BLOCK)]).tobytes())
+                    h.update(_bytes_of(ds[start:start + max(chunk_size, _HASH_BLOCK)]))
                 if h.hexdigest() != sums.get(full):
                     raise EventFileError(f"{path}: dataset {full!r} does not match its checksum: the file is corrupt")
         last_t = None

@@ -114,3 +114,77 @@ def test_a_header_that_makes_hdf5_loop_is_an_error_within_the_time_limit(tmp_pat
     for read in (read_detection, read_events):
         with pytest.raises(EventFileError, match=r"loop\.h5: the HDF5 parser did not finish within 1 s"):
             read(path)
+
+
+def _big_detection(n):
+    g = np.random.default_rng(3)
+    ev = make_events(g.integers(0, 8, n), g.integers(0, 4, n), np.sort(g.integers(0, 10**6, n)), g.random(n) < .5)
+    lt = np.zeros(n, dtype=list(LIFETIME_COLUMNS))
+    for name, _ in LIFETIME_COLUMNS:
+        lt[name] = g.random(n) < .5 if name in ("valid", "kept") else g.random(n)
+    return Detection(SensorSize(8, 4), ev, lt, Frames([5, 9], g.random((2, 4, 8)) < .5), {"method": "intra"})
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_columns_written_in_slices_give_the_bytes_of_one_write(tmp_path, monkeypatch, compress):
+    from evedge.io import detection
+
+    d = _big_detection(103)
+    monkeypatch.setattr(detection, "_CHUNK", 4)
+    monkeypatch.setattr(detection, "_WRITE_ROWS", 10**9)  # every column in one write (reference)
+    whole = write_detection(tmp_path / "whole.h5", d, compress_per_event=compress).read_bytes()
+    monkeypatch.setattr(detection, "_WRITE_ROWS", 8)  # 13 slices of 2 chunks, the last one short
+    sliced = write_detection(tmp_path / "sliced.h5", d, compress_per_event=compress)
+    assert sliced.read_bytes() == whole
+    got = read_detection(sliced)
+    assert got.events.tobytes() == d.events.tobytes() and got.lifetimes.tobytes() == d.lifetimes.tobytes()
+
+
+def test_lifetime_columns_as_a_dict_and_released_give_the_same_file(tmp_path, monkeypatch):
+    from evedge.io import detection
+
+    monkeypatch.setattr(detection, "_WRITE_ROWS", 16)
+    d = _big_detection(50)
+    ref = write_detection(tmp_path / "ref.h5", d).read_bytes()
+    cols = {name: d.lifetimes[name].copy() for name, _ in LIFETIME_COLUMNS}
+    kept = Detection(d.sensor_size, d.events, dict(cols), d.edges, d.metadata)
+    assert write_detection(tmp_path / "dict.h5", kept).read_bytes() == ref
+    assert kept.events is d.events and set(kept.lifetimes) == set(cols)  # nothing released by default
+    owned = Detection(d.sensor_size, d.events.copy(), dict(cols), d.edges, d.metadata)
+    assert write_detection(tmp_path / "owned.h5", owned, release_columns=True).read_bytes() == ref
+    assert owned.events is None and owned.lifetimes == {}
+    bad = Detection(d.sensor_size, d.events, {**cols, "kept": cols["kept"][:-1]}, d.edges, d.metadata)
+    with pytest.raises(ValueError, match="1-D of one length"):
+        write_detection(tmp_path / "bad.h5", bad)
+    assert not (tmp_path / "bad.h5").exists()
+
+
+def test_released_columns_are_freed_while_the_image_grows(tmp_path):
+    import gc
+    import weakref
+
+    from evedge.io import detection
+
+    n = 3 * detection._WRITE_ROWS // 2
+    d = _big_detection(n)
+    cols = {name: np.ascontiguousarray(d.lifetimes[name]) for name, _ in LIFETIME_COLUMNS}
+    refs = {name: weakref.ref(col) for name, col in cols.items()}
+    ev_ref = weakref.ref(d.events)
+    seen = {}
+    real = detection._dataset
+
+    def spy(group, name, data, *args):
+        gc.collect()
+        seen[f"{group.name}/{name}"] = (ev_ref() is None, sorted(k for k, r in refs.items() if r() is None))
+        real(group, name, data, *args)
+
+    owned = Detection(d.sensor_size, d.events, cols, d.edges, d.metadata)
+    del d, cols
+    detection._dataset, real_dataset = spy, real
+    try:
+        write_detection(tmp_path / "d.h5", owned, release_columns=True)
+    finally:
+        detection._dataset = real_dataset
+    assert seen["/events/p"] == (False, [])  # the events are still in use while their columns are written
+    assert seen["/lifetimes/lifetime_us"] == (True, [])  # then freed, before the first lifetime column
+    assert seen["/lifetimes/kept"] == (True, ["lifetime_us", "valid", "vx_px_s", "vy_px_s"])

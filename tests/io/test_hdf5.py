@@ -313,3 +313,43 @@ def test_truth_times_must_be_the_events_times(tmp_path, small_recording):
     _tamper(path, _replace("truth/t_ns", rec.truth["t_ns"].astype(np.float64)))
     with pytest.raises(EventFileError, match=r"'truth/t_ns' has dtype float64, expected int64 nanoseconds"):
         read_hdf5(path)
+
+
+def _tobytes_digest(data: np.ndarray) -> str:
+    """The checksum as version 2 files store it, from its definition (a copy of the bytes; reference)."""
+    h = hashlib.sha256(f"{data.dtype.str}{tuple(int(n) for n in data.shape)}".encode())
+    h.update(np.ascontiguousarray(data).tobytes())
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize("data", [
+    np.arange(11, dtype=np.int64),                                   # 1-D, several slices
+    np.arange(90, dtype=np.float32).reshape(6, 3, 5),                # N-D: rows of 15
+    np.zeros((0, 4), np.uint8),                                      # empty
+    np.array(7.5),                                                   # scalar
+    np.arange(13) % 3 == 0,                                          # bool
+    np.arange(40, dtype=np.int16)[::3],                              # not contiguous
+], ids=["1d", "nd", "empty", "scalar", "bool", "strided"])
+def test_checksums_without_copies_are_the_stored_ones(tmp_path, monkeypatch, data):
+    from evedge.io import hdf5
+
+    monkeypatch.setattr(hdf5, "_SEAL_ROWS", 4)  # seal reads 4 elements' rows at a time: 1-D and N-D sliced
+    assert hdf5._data_digest(data) == _tobytes_digest(data)
+    with h5py.File(tmp_path / "d.h5", "w") as f:
+        f.create_dataset("a", data=data)
+        assert hdf5._dataset_digest(f["a"]) == _tobytes_digest(data)
+        seal(f)
+        assert json.loads(f.attrs["checksums"])["a"] == _tobytes_digest(data)
+
+
+def test_sealed_recording_checksums_are_the_stored_ones(tmp_path, small_recording, monkeypatch):
+    from evedge.io import hdf5
+
+    monkeypatch.setattr(hdf5, "_SEAL_ROWS", 7)
+    path = write_recording(tmp_path / "r.h5", small_recording())
+    with h5py.File(path) as f:
+        sums = json.loads(f.attrs["checksums"])
+        names = []
+        f.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
+        assert names and all(sums[name] == _tobytes_digest(f[name][()]) for name in names)
+    read_hdf5(path)
