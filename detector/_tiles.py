@@ -109,22 +109,30 @@ def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
 # ---------------------------------------------------------------- event buffer
 
 
+@njit(cache=True)
+def _strip_events(x, y, t, p, sel, row0):
+    """The events ``sel`` of a strip as int64 columns, rows relative to the strip's first row ``row0``."""
+    n = sel.shape[0]
+    xs = np.empty(n, np.int64)
+    ys = np.empty(n, np.int64)
+    ts = np.empty(n, np.int64)
+    ps = np.empty(n, np.int64)
+    for j in range(n):
+        k = sel[j]
+        xs[j] = x[k]
+        ys[j] = y[k] - row0
+        ts[j] = t[k]
+        ps[j] = p[k]
+    return xs, ys, ts, ps
+
+
 @njit(parallel=True, cache=True)
 def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_us, causal, supported, line_us=0,
                   line_tol=0.5, line_quiet=2.0, line_count=1):
     for s in prange(lo.shape[0]):
         sel = idx[starts[s]:starts[s + 1]]
         n = sel.shape[0]
-        xs = np.empty(n, np.int64)
-        ys = np.empty(n, np.int64)
-        ts = np.empty(n, np.int64)
-        ps = np.empty(n, np.int64)
-        for j in range(n):
-            k = sel[j]
-            xs[j] = x[k]
-            ys[j] = y[k] - lo[s]
-            ts[j] = t[k]
-            ps[j] = p[k]
+        xs, ys, ts, ps = _strip_events(x, y, t, p, sel, lo[s])
         sup = np.empty(n, np.bool_)
         _buffer_scan(xs, ys, ts, ps, np.empty(n, np.int64), sup, 0, 0, new_state(width, rows[s]), width, rows[s],
                      tau_us, causal)
@@ -168,24 +176,17 @@ def _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, rows, own_lo, ow
     for s in prange(lo.shape[0]):
         sel = idx[starts[s]:starts[s + 1]]
         n = sel.shape[0]
-        xs = np.empty(n, np.int64)
-        ys = np.empty(n, np.int64)
-        ts = np.empty(n, np.int64)
+        xs, ys, ts, ps = _strip_events(x, y, t, p, sel, lo[s])
         ls = np.empty(n)
         us = np.empty(n)
         ws = np.empty(n)
         vs = np.empty(n, np.bool_)
-        ps = np.empty(n, np.int64)
         for j in range(n):
             k = sel[j]
-            xs[j] = x[k]
-            ys[j] = y[k] - lo[s]
-            ts[j] = t[k]
             ls[j] = lt[k]
             us[j] = vx[k]
             ws[j] = vy[k]
             vs[j] = valid[k]
-            ps[j] = p[k]
         cells = rows[s] * width
         last_t = np.full(cells, NEVER_US, np.int64)
         expiry = np.full(cells, -np.inf)
