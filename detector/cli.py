@@ -147,7 +147,8 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     (frames taken at the instants inside the chunk, as :func:`edge_frames` takes
     them); their estimates are written into the table in place. No copy of the
     kept events or of their estimates is made: here the peak is the filter's keep
-    mask, ~45 bytes per event above the events (its int64 columns). detection.h5 is
+    mask (the buffer reads the event fields in place; its ``prev`` chain is 8 bytes
+    per event). detection.h5 is
     built in memory (``write_detection``) and frees each column once it is in the
     file image (``release_columns``): the image (39 bytes per event) replaces the
     table (26) rather than adding to it (``benchmarks/bench_cli.py``).
