@@ -158,10 +158,14 @@ def check_lifetimes(lifetimes, n: int, name: str = "lifetimes") -> np.ndarray:
 
 
 def columns(events: np.ndarray):
-    """Contiguous plain columns for numba: x, y (int64), t (int64), p (int64 0/1)."""
-    return (
-        np.ascontiguousarray(events["x"], dtype=np.int64),
-        np.ascontiguousarray(events["y"], dtype=np.int64),
-        np.ascontiguousarray(events["t"], dtype=np.int64),
-        np.ascontiguousarray(events["p"], dtype=np.int64),
-    )
+    """Contiguous plain columns for numba: x, y (int64), t (int64), p (int64 0/1).
+
+    Always writeable arrays (a read-only field that is already contiguous, as a
+    one-event chunk of a locked array, is copied): numba compiles one
+    specialisation per argument type, and read-only is a type of its own.
+    """
+    return tuple(_writeable(np.ascontiguousarray(events[f], dtype=np.int64)) for f in ("x", "y", "t", "p"))
+
+
+def _writeable(a: np.ndarray) -> np.ndarray:
+    return a if a.flags.writeable else a.copy()
