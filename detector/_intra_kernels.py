@@ -677,10 +677,96 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 
 
 @njit(cache=True)
+def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a, b, delta, thr_us, thr_rel,
+            intercept):
+    """The fit ``dt = a dx + b dy`` refitted on its inliers and on the outer ring's points on its plane.
+
+    The fit saw the ``n`` points of the window of half-size ``fh`` (``wi[_INL]``
+    marks its inliers); the ring is the cells of the window of half-size
+    ``half > fh`` outside it, read from the SAE plane at ``base`` (never-fired
+    cells, cells older than ``oldest`` and rows outside ``0 .. height - 1`` are no
+    points, as in :func:`_gather`). A ring point joins when its residual to the
+    fit's plane (with the inliers' least-squares offset when ``intercept``, else
+    through the current event), less the intra-pixel slack, is within the inlier
+    threshold. Least squares on the inliers, the joined points and the current
+    event, as the fit's own refit; returns ``(a, b)`` unchanged when no ring point
+    joins or the refit is flat, singular or not finite.
+    """
+    s1 = 1.0
+    sx = 0.0
+    sy = 0.0
+    st = 0.0
+    sxx = 0.0
+    sxy = 0.0
+    syy = 0.0
+    sxt = 0.0
+    syt = 0.0
+    for i in range(n):
+        if wi[_INL, i] == 1:
+            xq = wf[_DX, i]
+            yq = wf[_DY, i]
+            tq = wf[_DT, i]
+            s1 += 1.0
+            sx += xq
+            sy += yq
+            st += tq
+            sxx += xq * xq
+            sxy += xq * yq
+            syy += yq * yq
+            sxt += xq * tq
+            syt += yq * tq
+    c = (st - a * sx - b * sy) / s1 if intercept else 0.0
+    slack = delta * (abs(a) + abs(b))
+    thr = thr_us + thr_rel * math.sqrt(a * a + b * b)
+    joined = 0
+    for yy in range(max(yk - half, 0), min(yk + half, height - 1) + 1):
+        row = base + yy * width
+        oy = yy - yk
+        for xx in range(max(xk - half, 0), min(xk + half, width - 1) + 1):
+            ox = xx - xk
+            if abs(ox) <= fh and abs(oy) <= fh:
+                continue
+            v = sae[row + xx]
+            if v == _NEVER or v < oldest:
+                continue
+            xq = float(ox)
+            yq = float(oy)
+            tq = float(v - tk)
+            if abs(tq - (a * xq + b * yq + c)) - slack > thr:
+                continue
+            joined += 1
+            s1 += 1.0
+            sx += xq
+            sy += yq
+            st += tq
+            sxx += xq * xq
+            sxy += xq * yq
+            syy += yq * yq
+            sxt += xq * tq
+            syt += yq * tq
+    if joined == 0:
+        return a, b
+    if intercept:
+        sxx -= sx * sx / s1
+        sxy -= sx * sy / s1
+        syy -= sy * sy / s1
+        sxt -= sx * st / s1
+        syt -= sy * st / s1
+    det = sxx * syy - sxy * sxy
+    if not det > 1e-9 * (sxx * syy):
+        return a, b
+    a2 = (sxt * syy - syt * sxy) / det
+    b2 = (syt * sxx - sxt * sxy) / det
+    if not (a2 * a2 + b2 * b2 > 0.0) or not math.isfinite(a2) or not math.isfinite(b2):
+        return a, b
+    return a2, b2
+
+
+@njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
-                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first):
+                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -732,8 +818,16 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
 
     Stale cutoff (``stale_frac > 0``): an event that starts a burst ignores the
     window times older than :func:`_stale_cutoff`.
+
+    Ring refit (``refine``, None = off, pruned when compiled): the fit (gather,
+    2-means, RANSAC, the rules) sees the window of half-size ``refine``, and
+    :func:`_refine` refits its plane with the points of the window of half-size
+    ``half`` on it (``half`` is then the radius the event reads, for the strips).
     """
     log_fail = _log_fail(stop_prob)
+    fh = half  # the fit's window half-size
+    if refine is not None:
+        fh = refine
     publish = dec.shape[0] > 0
     for j in range(j0, idx.shape[0]):
         k = idx[j]
@@ -764,14 +858,18 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 sae[si] = tk
             oldest = _NEVER
             if not (cont or trial) and prev_pol[si] == pk:
-                oldest = _stale_cutoff(tk, prev_t[si], prev_lt[si], stale_frac, half)
-            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)
+                oldest = _stale_cutoff(tk, prev_t[si], prev_lt[si], stale_frac, fh)
+            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, oldest)
             big = 0
             for i in range(n):
                 big = max(big, abs(wi[_IT, i]))
             ok, a, b = _fit_points(wf, wi, n, n * big < _EXACT_SUM, _event_key(seed, g0 + k), delta, thr_us,
                                    thr_rel, max_trials, stop_prob, log_fail, min_points, min_inliers, intercept,
                                    fallback, gap_ratio, on_plane, jump_check, noise, ls_first)
+            if refine is not None:
+                if ok:
+                    a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
+                                   thr_us, thr_rel, intercept)
             if not trial:
                 break
             trial = False

@@ -331,6 +331,34 @@ ns (1.18x), 2.03 -> 2.03 %, 3.05 -> 3.10 %, 99.14 -> 99.14 %; ``shapes_rotation`
 in every group median error and > 2x off at most 0.012 points higher (mostly
 lower), estimated within 0.07 points. 0.25 is as neutral and a little slower on shapes (1.11x).
 
+Ring refit (``refine_window``, default 0 = off, the paper; 7 in :func:`robust_params`
+and :func:`noise_params`). At low contrast each pixel fires once or twice per passage at
+a point of the edge's crossing that its threshold (mismatch ``contrast_sigma``) and its
+leftover from the previous passage set: the timestamps scatter about the plane by a few
+per cent of a lifetime, and a 5 x 5 window's ~10 points of the current passage leave
+that scatter in the slopes (r = 2.2, 200 px/s, 0 degrees, ``noise_params()``: estimates
+5-95 % at 0.87-1.06 of the truth, median error 4.2 %). A larger window for the whole
+fit costs coverage where the larger window holds more stale levels (``window_size = 7``
+on the quick grid: signal estimated at 10 px/s down 8-16 points, estimator CPU 2x) and
+bias where the flow varies across it. The ring refit keeps the fit on the paper's
+window and only adds, to its least-squares refit, the points of the larger window that
+lie on the fitted plane (residual to it, with the inliers' least-squares offset, less
+the intra-pixel slack, within the inlier threshold): the same r = 2.2 cell gives
+0.92-1.03, median 2.4 % (9: 1.7 %). The ring makes or removes no estimate itself (the
+rules that read the lifetime, bursts and start-up, may decide a few events
+differently). Quick grid, ``--preset noise`` (2026-12-02, load ~1), without -> ring 7
+-> ring 9: cells within the median-error goal 38 -> 50 -> 53 of 72, > 2x off goal 44 ->
+43 -> 43, signal goal 25 -> 25 -> 25, noise <= 10 % 28 -> 28 -> 28 of 30, cells where the
+median error is above half Mueggler's 21 -> 11 -> 9 of 38; medians over the cells,
+clean r >= 3 1.3 -> 0.8 -> 0.5 %, clean r < 3 3.7 -> 2.1 -> 1.7 %, noisy 4.0 -> 2.7 ->
+2.1 %; worse: the rotating star (a plane over a wider window averages a lifetime that
+varies with the radius: 4.6 -> 5.7 -> 6.1 %, 7.1 -> 8.2 -> 8.0 %, 7.4 -> 8.6 -> 8.3 %)
+and slow high-contrast stripes (10 px/s, r = 5: 0.7 -> 1.0 -> 1.7 %); estimator CPU
+summed over the cells 4.1 -> 4.3 -> 4.4 s. The presets take 7 (most of the gain, half
+the rotation's loss of 9). On the real ``stripes.mat`` (``robust_params()``) estimated
+71.1 -> 71.3 % of the kept events, medians 6.64 / 11.82 -> 6.68 / 11.87 ms (model-free
+6.6 / 11.6). The strips' halo is the ring's radius (the events read that far).
+
 Randomness: trial ``k`` of the event with global index ``g`` (position in the
 stream since the last :meth:`IntraPixelLifetime.reset`) draws
 ``splitmix64(key + 2k)`` and ``splitmix64(key + 2k + 1)`` with
@@ -534,6 +562,17 @@ class IntraParams:
         trial runs; otherwise RANSAC as usual. Default 0.5 (accuracy-neutral
         on the simulator's truth, 1.1-1.2x faster there); 0 = off (the paper's
         RANSAC, the bytes of before). See the module notes ("schedule").
+    refine_window : int
+        0 (off, the paper) or odd and > ``window_size``. Ring refit: the fit
+        (2-means, RANSAC and every rule above) runs on the ``window_size``
+        window as usual; its least-squares refit then also takes the points of
+        this larger window outside it that lie on the fitted plane (residual,
+        less the intra-pixel slack, within the inlier threshold). More points on
+        the same plane: less timing noise in the slopes where the plane holds
+        (low contrast); the ring itself makes or removes no estimate (the rules
+        that read the lifetime may decide a few events differently). 7 in
+        :func:`robust_params`. Streaming only (a window of
+        :func:`fit_window` has no ring). See the module notes ("ring refit").
     """
 
     window_size: int = 5
@@ -560,6 +599,7 @@ class IntraParams:
     burst_span_lifetimes: float = 0.0
     lifetime_agreement: float = 0.0
     ls_first: float = 0.5
+    refine_window: int = 0
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -596,12 +636,17 @@ class IntraParams:
             raise ValueError(f"{own}.lifetime_agreement must be 0 (off) or > 1, got {self.lifetime_agreement}")
         if self.newer_share_max > 1:
             raise ValueError(f"{own}.newer_share_max must be in (0, 1] (1 = off), got {self.newer_share_max}")
+        check_positive(own, "refine_window", self.refine_window, integer=True, allow_zero=True)
+        if self.refine_window and (self.refine_window <= self.window_size or self.refine_window % 2 == 0):
+            raise ValueError(f"{own}.refine_window must be 0 (off) or odd and > window_size = {self.window_size}, "
+                             f"got {self.refine_window}")
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
         for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
             check_bool(own, name, getattr(self, name))
-        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px"):
+        for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px",
+                     "refine_window"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
@@ -611,7 +656,7 @@ class IntraParams:
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
 ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
-          "stale_fraction": 0.5, "startup_reach": 1.0}
+          "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 7}
 
 
 def robust_params(**overrides) -> IntraParams:
@@ -732,13 +777,16 @@ class IntraPixelLifetime:
         w, h = self.sensor_size.width, self.sensor_size.height
         if self._t_start is None:
             self._t_start = int(t[0])
-        args = (pr.burst_lifetimes, pr.per_polarity, pr.window_size // 2, pr.delta_px, pr.inlier_threshold_us,
+        # the radius the events read: the ring refit's window when on (the strips' halo), else the fit's
+        args = (pr.burst_lifetimes, pr.per_polarity, max(pr.window_size, pr.refine_window) // 2, pr.delta_px,
+                pr.inlier_threshold_us,
                 pr.inlier_threshold_rel, pr.max_trials, pr.stop_probability, pr.min_points, pr.min_inliers,
                 pr.refit_intercept, pr.fallback_all_points, pr.seed, off_as_none(pr.split_gap_ratio),
                 off_as_none(pr.event_on_plane), pr.burst_startup, pr.border_px, pr.split_jump_check,
                 pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
                 pr.startup_reach * (pr.window_size // 2), noise_args(pr),  # options off as None: not compiled
-                pr.ls_first)  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
+                pr.ls_first,  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
+                pr.window_size // 2 if pr.refine_window else None)  # the ring refit: off as None, not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]

@@ -245,6 +245,9 @@ def ref_stream(events, size, p: IntraParams):
                             cells.append(q)
             ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px)
             inliers[:] = [q for q, f in zip(cells, flags) if f]
+            if ok and p.refine_window:
+                a, b = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f], a, b,
+                                      oldest)
             return ok, a, b
 
         def stale_cutoff():
@@ -290,6 +293,37 @@ def ref_stream(events, size, p: IntraParams):
         keep = p.burst_startup and cont and not ok  # an invalid event inside a burst keeps the burst's lifetime
         prev[key] = (t_ev, plt if keep else lt, pol)
     return np.array(out, dtype=LIFETIME_DTYPE)
+
+
+def ref_ring_refit(sae, plane, x, y, t, size, p: IntraParams, inl, a, b, oldest=None):
+    """refine_window: least squares on the fit's inliers ``inl``, the current event and the ring's points
+    on the fit's plane (residual to it, with the inliers' mean offset, less the slack, within the threshold)."""
+    half, ring = p.window_size // 2, p.refine_window // 2
+    pts = [(0.0, 0.0, 0.0)] + list(inl)
+    c = float(np.mean([q[2] - a * q[0] - b * q[1] for q in pts])) if p.refit_intercept else 0.0
+    slack = p.delta_px * (abs(a) + abs(b))
+    thr = p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    joined = []
+    for oy in range(-ring, ring + 1):
+        for ox in range(-ring, ring + 1):
+            q = (plane, x + ox, y + oy)
+            if max(abs(ox), abs(oy)) <= half or not (0 <= x + ox < size.width and 0 <= y + oy < size.height):
+                continue
+            if q in sae and (oldest is None or sae[q] >= oldest):
+                d = float(sae[q] - t)
+                if abs(d - (a * ox + b * oy + c)) - slack <= thr:
+                    joined.append((float(ox), float(oy), d))
+    if not joined:
+        return a, b
+    m = np.array(pts + joined)
+    if p.refit_intercept:
+        m = m - m.mean(axis=0)
+    xy, dt = m[:, :2], m[:, 2]
+    g = xy.T @ xy
+    if not np.linalg.det(g) > 1e-9 * g[0, 0] * g[1, 1]:
+        return a, b
+    a2, b2 = np.linalg.solve(g, xy.T @ dt)
+    return (a2, b2) if a2 * a2 + b2 * b2 > 0 and math.isfinite(a2) and math.isfinite(b2) else (a, b)
 
 
 def assert_lifetimes_close(got, want):
