@@ -432,6 +432,7 @@ from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
+from .fill import ARRIVAL, NeighbourFill, check_fill
 from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
@@ -573,6 +574,22 @@ class IntraParams:
         that read the lifetime may decide a few events differently). 7 in
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
+    fill_neighbours : int
+        0..8. Above 0, after the estimator, an event it left without estimate gets
+        the median lifetime of its recent neighbours' estimates (same polarity
+        plane) when at least this many of its 8 neighbours hold one and they agree
+        (:mod:`evedge.detector.fill`; filled values never feed the fill's state).
+        Default 0 = off (the paper; the bytes of before).
+    fill_tolerance : float
+        >= 0. The neighbours agree when ``(max - min) <= fill_tolerance * median``
+        of their lifetimes (default 0.5).
+    fill_agreement : float
+        > 0. A neighbour's estimate is recent when it is at most ``fill_agreement``
+        times its own lifetime older than the event (default 1.5).
+    fill_arrival : float
+        >= 0. A recent neighbour counts only when its plane predicts the edge at
+        the event's pixel within ``fill_arrival`` times its lifetime of the
+        event's time (default 0.5; 0 = off).
     """
 
     window_size: int = 5
@@ -600,6 +617,10 @@ class IntraParams:
     lifetime_agreement: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
+    fill_neighbours: int = 0
+    fill_tolerance: float = 0.5
+    fill_agreement: float = 1.5
+    fill_arrival: float = ARRIVAL
 
     def __post_init__(self) -> None:
         own = "IntraParams"
@@ -640,17 +661,19 @@ class IntraParams:
         if self.refine_window and (self.refine_window <= self.window_size or self.refine_window % 2 == 0):
             raise ValueError(f"{own}.refine_window must be 0 (off) or odd and > window_size = {self.window_size}, "
                              f"got {self.refine_window}")
+        check_fill(own, self.fill_neighbours, self.fill_tolerance, self.fill_agreement, self.fill_arrival, prefix="fill_")
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
         for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
             check_bool(own, name, getattr(self, name))
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px",
-                     "refine_window"):
+                     "refine_window", "fill_neighbours"):
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
-                     "burst_span_lifetimes", "lifetime_agreement", "ls_first"):
+                     "burst_span_lifetimes", "lifetime_agreement", "ls_first", "fill_tolerance", "fill_agreement",
+                     "fill_arrival"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
@@ -748,10 +771,14 @@ class IntraPixelLifetime:
         self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
         self._scratch = scratch_arrays(self.params.window_size**2)  # the serial kernel's, reused by every chunk
+        pr = self.params  # the neighbour fill (off: None), run after the kernel on its output
+        self._fill = NeighbourFill(self.sensor_size, neighbours=pr.fill_neighbours, tolerance=pr.fill_tolerance,
+                                   agreement=pr.fill_agreement, arrival=pr.fill_arrival, per_polarity=pr.per_polarity,
+                                   border_px=pr.border_px) if pr.fill_neighbours else None
         self.reset()
 
     def reset(self) -> None:
-        """Clear the SAE and the burst state; restart the event counter of the random stream."""
+        """Clear the SAE, the burst state and the neighbour fill's; restart the event counter of the random stream."""
         self.sae.reset()
         self._prev_t = np.zeros(self.sae.times_us.size, dtype=np.int64)
         self._prev_lt = np.full(self.sae.times_us.size, np.nan)
@@ -759,6 +786,8 @@ class IntraPixelLifetime:
         self._n_seen = 0
         self._last_time: int | None = None
         self._t_start: int | None = None  # the first event's time (start-up rule)
+        if self._fill is not None:
+            self._fill.reset()
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Estimate lifetime and normal flow of each event of a time-sorted chunk."""
@@ -797,6 +826,8 @@ class IntraPixelLifetime:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
             intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid))
+        if self._fill is not None:  # serial, after the strips: the same bytes for any n_tiles
+            self._fill._apply(x, y, t, p, lt, vx, vy, valid)
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time
