@@ -25,7 +25,8 @@ Run ``.venv/bin/python benchmarks/robustness_grid.py --quick`` (a reduced grid, 
 starts from :func:`~evedge.detector.intra.robust_params` / :func:`~evedge.detector.intra.noise_params`
 instead of the defaults; ``--intra key=value``
 (repeatable) changes an :class:`~evedge.detector.intra.IntraParams` field on top, e.g.
-``--intra newer_share_max=0.25`` to measure a departure from the paper; ``--buffer
+``--intra newer_share_max=0.25`` to measure a departure from the paper (``--intra fill_neighbours=2``:
+the neighbour fill of :mod:`evedge.detector.fill` on top of the estimator); ``--buffer
 tau_min_us=30000`` changes the proposed detector's event buffer (the paper's 10 ms by default);
 ``--buffer-preset line`` starts it from :func:`~evedge.detector.buffer.line_params` (the line rule);
 ``--scene SCENE.toml`` scores one scene file instead (the ``--preset`` / ``--intra`` parameters,
