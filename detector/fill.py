@@ -26,7 +26,7 @@ the estimator runs per polarity, else one plane):
   that is within ``arrival`` times its lifetime of the event's time (the
   arrival check, our addition to the rule: recency alone accepts any event in
   the 1.5 lifetimes after an edge passed the neighbours, which is where
-  background events near an edge fall; see "measured"). When at least
+  background events near an edge fall; measured below). When at least
   ``neighbours`` neighbours count and all of them agree,
   ``(max - min) <= tolerance * median`` of their lifetimes, the event gets
   their median lifetime, and as normal flow the component-wise median of
@@ -44,7 +44,7 @@ estimator's output, so the strips' bytes stay the serial ones.
 
 In the estimator: ``IntraParams.fill_neighbours`` (0 = off, the default and the
 paper: the output bytes are unchanged), ``fill_tolerance`` (0.5), ``fill_agreement``
-(1.5), applied by :class:`~evedge.detector.intra.IntraPixelLifetime` after its kernel;
+(1.5), ``fill_arrival`` (0.5), applied by :class:`~evedge.detector.intra.IntraPixelLifetime` after its kernel;
 :class:`NeighbourFill` / :func:`fill_lifetimes` apply it to any estimator's output.
 
 Measured (2026-12-02) on the quick grid, ``benchmarks/robustness_grid.py --quick
