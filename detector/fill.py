@@ -61,6 +61,17 @@ median errors per group do not move (0.8 / 2.1 / 2.7 %). The cell that crosses 1
 at ``N = 2`` is stripes at 0 degrees, 10 px/s, r = 5, 5 Hz (9.6 -> 10.7 %, its floor
 8.6 %).
 
+Full grid (210 cells at 96x72, ``--preset noise --workers 1``), cells within the goals
+median error / > 2x off / signal estimated (of 210) / noise <= 10 % (of 100), median
+signal estimated clean r < 3 / noisy, noise median: off 163 / 150 / 93 / 92, 68.4 /
+78.2 %, 6.7 %; ``N = 2`` 164 / 152 / 104 / 87, 69.5 / 84.7 %, 6.9 % (the five noisy
+cells lost go from 9.7-10.0 % to 10.0-10.6 %, floors 7.9-9.7 %); ``fill_arrival = 0.25``
+163 / 152 / 102 / 89; ``N = 3`` 164 / 152 / 102 / 88; ``N = 1`` 163 / 148 / 104 / 81;
+without the arrival check 163 / 151 / 104 / 46 (noise 10.7 %); with the buffer's line
+rule (``--buffer-preset line``) 172 / 153 / 93 / 91 -> 174 / 156 / 104 / 87. No setting
+keeps every noisy cell within 10 %, so :func:`~evedge.detector.intra.noise_params`
+leaves the fill off.
+
 Clean low contrast hardly gains, whatever the rule, because the fill is causal and
 sees only the estimator's input: at r = 1.3 a pixel skips about half the passages,
 and of the signal events left without estimate (stripes, 0 degrees, 200 px/s, r = 1.3,
