@@ -668,16 +668,29 @@ ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, 
           "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 9}
 
 
+def _preset(base: dict, overrides: dict) -> IntraParams:
+    kw = {**base, **overrides}
+    if "window_size" in overrides and "refine_window" not in overrides and kw.get("refine_window"):
+        # the ring keeps its width (two cells each side of the 5 x 5 fit) around a larger fit window
+        kw["refine_window"] = int(overrides["window_size"]) + ROBUST["refine_window"] - 5
+    return IntraParams(**kw)
+
+
 def robust_params(**overrides) -> IntraParams:
     """:class:`IntraParams` with the robustness options on (:data:`ROBUST`), plus any ``overrides``.
+
+    An overridden ``window_size`` keeps the ring refit two cells wide around it
+    (``refine_window = window_size + 4``) unless ``refine_window`` is given too.
 
     Examples
     --------
     >>> p = robust_params(seed=3)
-    >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed)
-    (3.0, 1.0, True, 3)
+    >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed, p.refine_window)
+    (3.0, 1.0, True, 3, 9)
+    >>> robust_params(window_size=7).refine_window
+    11
     """
-    return IntraParams(**{**ROBUST, **overrides})
+    return _preset(ROBUST, overrides)
 
 
 #: The noise rules measured on ``benchmarks/robustness_grid.py`` (module notes, "noise"), all together.
@@ -693,7 +706,7 @@ def noise_params(**overrides) -> IntraParams:
     >>> (p.split_gap_ratio, p.event_on_plane, p.newer_share_max, p.burst_span_lifetimes, p.lifetime_agreement)
     (3.0, 1.0, 0.25, 0.0, 2.0)
     """
-    return IntraParams(**{**ROBUST, **NOISE_RULES, **overrides})
+    return _preset({**ROBUST, **NOISE_RULES}, overrides)
 
 
 def noise_args(params: IntraParams) -> np.ndarray | None:

@@ -81,3 +81,12 @@ def test_ring_refit_strips_and_chunks_equal_one_shot(edge_events, random_events,
 def test_bad_refine_window_is_a_clear_error(value):
     with pytest.raises((ValueError, TypeError), match="refine_window"):
         IntraParams(refine_window=value)
+
+
+def test_presets_keep_the_ring_around_a_larger_window():
+    assert robust_params().refine_window == 9 and noise_params().refine_window == 9
+    assert robust_params(window_size=7).refine_window == 11
+    assert noise_params(window_size=3).refine_window == 7
+    assert robust_params(window_size=7, refine_window=0).refine_window == 0
+    with pytest.raises(ValueError, match="refine_window"):
+        robust_params(refine_window=5)
