@@ -331,7 +331,7 @@ ns (1.18x), 2.03 -> 2.03 %, 3.05 -> 3.10 %, 99.14 -> 99.14 %; ``shapes_rotation`
 in every group median error and > 2x off at most 0.012 points higher (mostly
 lower), estimated within 0.07 points. 0.25 is as neutral and a little slower on shapes (1.11x).
 
-Ring refit (``refine_window``, default 0 = off, the paper; 7 in :func:`robust_params`
+Ring refit (``refine_window``, default 0 = off, the paper; 9 in :func:`robust_params`
 and :func:`noise_params`). At low contrast each pixel fires once or twice per passage at
 a point of the edge's crossing that its threshold (mismatch ``contrast_sigma``) and its
 leftover from the previous passage set: the timestamps scatter about the plane by a few
@@ -354,10 +354,19 @@ clean r >= 3 1.3 -> 0.8 -> 0.5 %, clean r < 3 3.7 -> 2.1 -> 1.7 %, noisy 4.0 -> 
 2.1 %; worse: the rotating star (a plane over a wider window averages a lifetime that
 varies with the radius: 4.6 -> 5.7 -> 6.1 %, 7.1 -> 8.2 -> 8.0 %, 7.4 -> 8.6 -> 8.3 %)
 and slow high-contrast stripes (10 px/s, r = 5: 0.7 -> 1.0 -> 1.7 %); estimator CPU
-summed over the cells 4.1 -> 4.3 -> 4.4 s. The presets take 7 (most of the gain, half
-the rotation's loss of 9). On the real ``stripes.mat`` (``robust_params()``) estimated
-71.1 -> 71.3 % of the kept events, medians 6.64 / 11.82 -> 6.68 / 11.87 ms (model-free
-6.6 / 11.6). The strips' halo is the ring's radius (the events read that far).
+summed over the cells 4.1 -> 4.3 -> 4.4 s. Full grid (96x72, 210 cells, ``--preset noise
+--buffer-preset line --intra refine_window=R --workers 1``, 2026-12-02, load 1.3-2.2), R =
+7 / 9 / 11: median-error goal 172 / 177 / 176 of 210 (135 without the ring), > 2x off
+153 / 155 / 157, noise <= 10 % 91 / 92 / 90 of 100, cells above half Mueggler's median
+31 / 23 / 12 of 131, medians clean r < 3 2.1 / 1.7 / 1.4 %, noisy 2.2 / 1.9 / 1.7 %; the
+first-0.1 s error over the noisy cells 5.9 / 7.2 / 8.7 % (the ring reaches pixels whose
+history is the start's), slow high-contrast stripes (20 degrees, 10 px/s, r = 3) 1.9 /
+2.2 / 2.8 %, estimator CPU summed over the cells 27.1 / 31.3 / 34.6 s; the rotating star
+5.1-6.6 % for all three. The presets take 9 (11 gains little more and plane over 11 x
+11 px is a strong assumption on real scenes). On the real ``stripes.mat``
+(``robust_params()``) estimated 71.1 -> 71.3 % of the kept events, medians 6.64 / 11.82
+-> 6.69 / 11.87 ms (model-free 6.6 / 11.6). The strips' halo is the ring's radius (the
+events read that far).
 
 Randomness: trial ``k`` of the event with global index ``g`` (position in the
 stream since the last :meth:`IntraPixelLifetime.reset`) draws
@@ -571,7 +580,7 @@ class IntraParams:
         less the intra-pixel slack, within the inlier threshold). More points on
         the same plane: less timing noise in the slopes where the plane holds
         (low contrast); the ring itself makes or removes no estimate (the rules
-        that read the lifetime may decide a few events differently). 7 in
+        that read the lifetime may decide a few events differently). 9 in
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
     fill_neighbours : int
@@ -679,19 +688,32 @@ class IntraParams:
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
 ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
-          "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 7}
+          "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 9}
+
+
+def _preset(base: dict, overrides: dict) -> IntraParams:
+    kw = {**base, **overrides}
+    if "window_size" in overrides and "refine_window" not in overrides and kw.get("refine_window"):
+        # the ring keeps its width (two cells each side of the 5 x 5 fit) around a larger fit window
+        kw["refine_window"] = int(overrides["window_size"]) + ROBUST["refine_window"] - 5
+    return IntraParams(**kw)
 
 
 def robust_params(**overrides) -> IntraParams:
     """:class:`IntraParams` with the robustness options on (:data:`ROBUST`), plus any ``overrides``.
 
+    An overridden ``window_size`` keeps the ring refit two cells wide around it
+    (``refine_window = window_size + 4``) unless ``refine_window`` is given too.
+
     Examples
     --------
     >>> p = robust_params(seed=3)
-    >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed)
-    (3.0, 1.0, True, 3)
+    >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed, p.refine_window)
+    (3.0, 1.0, True, 3, 9)
+    >>> robust_params(window_size=7).refine_window
+    11
     """
-    return IntraParams(**{**ROBUST, **overrides})
+    return _preset(ROBUST, overrides)
 
 
 #: The noise rules measured on ``benchmarks/robustness_grid.py`` (module notes, "noise"), all together.
@@ -707,7 +729,7 @@ def noise_params(**overrides) -> IntraParams:
     >>> (p.split_gap_ratio, p.event_on_plane, p.newer_share_max, p.burst_span_lifetimes, p.lifetime_agreement)
     (3.0, 1.0, 0.25, 0.0, 2.0)
     """
-    return IntraParams(**{**ROBUST, **NOISE_RULES, **overrides})
+    return _preset({**ROBUST, **NOISE_RULES}, overrides)
 
 
 def noise_args(params: IntraParams) -> np.ndarray | None:

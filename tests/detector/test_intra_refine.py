@@ -34,11 +34,12 @@ def test_ring_refit_reduces_timing_noise_keeps_decisions(edge_events):
     """On a straight edge with timing jitter the ring's points lie on the same plane: the median lifetime
     error falls (here by more than a third). The ring itself makes or removes no estimate; the rules that
     read the lifetime (burst grouping, start-up reach) may decide a few events differently."""
-    size = SensorSize(40, 30)
+    size = SensorSize(30, 24)
     ev, lifetime = _jittered_edge(edge_events, size, 0.06, rng=1)
-    base = robust_params()
-    plain = estimate_lifetimes(ev, size, base)
-    ring = estimate_lifetimes(ev, size, replace(base, refine_window=9))
+    ring_p = robust_params()  # refine_window 9
+    assert ring_p.refine_window == 9
+    plain = ref_stream(ev, size, replace(ring_p, refine_window=0))  # the reference: no new kernel variant
+    ring = estimate_lifetimes(ev, size, ring_p)
     err = {k: np.nanmedian(np.abs(r["lifetime_us"][r["valid"]] / lifetime - 1)) for k, r in (("5", plain),
                                                                                         ("9", ring))}
     assert err["9"] < 0.65 * err["5"], err
@@ -50,9 +51,8 @@ def test_ring_refit_exact_plane_is_unchanged(edge_events):
     rounding to 1 us (relative 1.25e-4 of the 4 ms lifetime per point)."""
     size = SensorSize(30, 24)
     ev, lifetime = edge_events(size.width, size.height, 250.0, 0.3, n_edges=1)
-    base = robust_params()
-    a = estimate_lifetimes(ev, size, base)
-    b = estimate_lifetimes(ev, size, replace(base, refine_window=7))
+    b = estimate_lifetimes(ev, size, robust_params(refine_window=7))
+    a = ref_stream(ev, size, robust_params(refine_window=0))
     assert np.mean(a["valid"] == b["valid"]) > 0.99
     v = a["valid"] & b["valid"]
     assert v.sum() > 300
@@ -81,3 +81,12 @@ def test_ring_refit_strips_and_chunks_equal_one_shot(edge_events, random_events,
 def test_bad_refine_window_is_a_clear_error(value):
     with pytest.raises((ValueError, TypeError), match="refine_window"):
         IntraParams(refine_window=value)
+
+
+def test_presets_keep_the_ring_around_a_larger_window():
+    assert robust_params().refine_window == 9 and noise_params().refine_window == 9
+    assert robust_params(window_size=7).refine_window == 11
+    assert noise_params(window_size=3).refine_window == 7
+    assert robust_params(window_size=7, refine_window=0).refine_window == 0
+    with pytest.raises(ValueError, match="refine_window"):
+        robust_params(refine_window=5)
