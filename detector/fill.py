@@ -47,30 +47,24 @@ paper: the output bytes are unchanged), ``fill_tolerance`` (0.5), ``fill_agreeme
 (1.5), ``fill_arrival`` (0.5), applied by :class:`~evedge.detector.intra.IntraPixelLifetime` after its kernel;
 :class:`NeighbourFill` / :func:`fill_lifetimes` apply it to any estimator's output.
 
-Measured (2026-12-02) on the quick grid, ``benchmarks/robustness_grid.py --quick
---preset noise --workers 1`` (72 cells at 64x48, :func:`~evedge.detector.intra.noise_params`),
-``--intra fill_neighbours=N`` on top; cells within the signal-estimated goal (of 72), median
-signal estimated over the clean r < 3 / noisy cells, noise events given a lifetime (median
-over the 30 noisy cells, cells <= 10 %): off 25, 70.6 / 72.6 %, 6.3 %, 28/30; ``N = 2``
-31, 71.3 / 84.0 %, 6.5 %, 27/30 (``fill_tolerance = 0.25``: 30, 71.3 / 82.6 %, 6.5 %,
-27/30; ``fill_arrival = 0.75``: 32, 71.3 / 85.8 %, 6.9 %, 26/30); ``N = 1`` 32, 75.7 /
-87.7 %, 7.5 %, 24/30; ``N = 3`` 29, 70.8 / 80.6 %, 6.4 %, 27/30. Without the arrival
-check (``fill_arrival = 0``, ``N = 2``): 32, 71.4 / 85.9 %, but 10.1 % of the noise
-events, 15/30 (at 200 px/s, r = 5, 5 Hz, 9.5 -> 18.9 %; with the check 9.9 %). The
-median errors per group do not move (0.8 / 2.1 / 2.7 %). The cell that crosses 10 %
-at ``N = 2`` is stripes at 0 degrees, 10 px/s, r = 5, 5 Hz (9.6 -> 10.7 %, its floor
-8.6 %).
-
-Full grid (210 cells at 96x72, ``--preset noise --workers 1``), cells within the goals
-median error / > 2x off / signal estimated (of 210) / noise <= 10 % (of 100), median
-signal estimated clean r < 3 / noisy, noise median: off 163 / 150 / 93 / 92, 68.4 /
-78.2 %, 6.7 %; ``N = 2`` 164 / 152 / 104 / 87, 69.5 / 84.7 %, 6.9 % (the five noisy
-cells lost go from 9.7-10.0 % to 10.0-10.6 %, floors 7.9-9.7 %); ``fill_arrival = 0.25``
-163 / 152 / 102 / 89; ``N = 3`` 164 / 152 / 102 / 88; ``N = 1`` 163 / 148 / 104 / 81;
-without the arrival check 163 / 151 / 104 / 46 (noise 10.7 %); with the buffer's line
-rule (``--buffer-preset line``) 172 / 153 / 93 / 91 -> 174 / 156 / 104 / 87. No setting
-keeps every noisy cell within 10 %, so :func:`~evedge.detector.intra.noise_params`
-leaves the fill off.
+Measured (2026-12-02, main's presets with the 9 x 9 ring refit) on
+``benchmarks/robustness_grid.py --preset noise --workers 1`` (:func:`~evedge.detector.intra.noise_params`),
+``--intra fill_neighbours=N`` on top. Full grid (210 cells at 96x72), cells within the goals
+median error / > 2x off / signal estimated (of 210) / noise given a lifetime <= 10 % (of
+100), median signal estimated over the clean r < 3 / noisy cells, noise given a lifetime
+(median over the noisy cells): off 167 / 151 / 93 / 91, 68.4 / 78.5 %, 6.7 %; ``N = 2``
+168 / 153 / 104 / 88, 69.5 / 85.2 %, 7.0 % (``fill_tolerance = 0.25``: 168 / 153 / 103 /
+88); without the arrival check (``fill_arrival = 0``) 166 / 151 / 104 / 46, noise 10.7 %;
+with the buffer's line rule (``--buffer-preset line``) 177 / 155 / 93 / 92 -> 178 / 158 /
+104 / 88. The three noisy cells lost at ``N = 2`` go from 9.8-10.0 % to 10.3-10.7 %
+(floors 7.9-9.3 %). The median errors per group do not move (0.8 / 1.8 / 1.9 %). Quick
+grid (``--quick``, 72 cells at 64x48): off 53 / 43 / 25 / 28 of 30, 70.7 / 72.9 %, 6.4 %;
+``N = 2`` 52 / 43 / 31 / 27, 71.4 / 84.2 %, 6.5 %; without the arrival check 52 / 43 / 32
+/ 15, 10.1 % (at 0 degrees, 200 px/s, r = 5, 5 Hz: 9.5 -> 18.9 %, with the check 9.9 %).
+Earlier, on the 7 x 7 ring presets (quick grid): ``N = 1`` 32 signal cells, 75.7 / 87.7 %,
+noise 7.5 %, 24/30; ``N = 3`` 29, 70.8 / 80.6 %, 6.4 %, 27/30; ``fill_arrival`` 0.25 / 0.75
+(full grid: 89 / 87 noisy cells; quick: 26/30 at 0.75). No setting keeps every noisy cell
+within 10 %, so :func:`~evedge.detector.intra.noise_params` leaves the fill off.
 
 Clean low contrast hardly gains, whatever the rule, because the fill is causal and
 sees only the estimator's input: at r = 1.3 a pixel skips about half the passages,
