@@ -62,8 +62,9 @@ grid (``--quick``, 72 cells at 64x48): off 53 / 43 / 25 / 28 of 30, 70.7 / 72.9 
 ``N = 2`` 52 / 43 / 31 / 27, 71.4 / 84.2 %, 6.5 %; without the arrival check 52 / 43 / 32
 / 15, 10.1 % (at 0 degrees, 200 px/s, r = 5, 5 Hz: 9.5 -> 18.9 %, with the check 9.9 %).
 Earlier, on the 7 x 7 ring presets (quick grid): ``N = 1`` 32 signal cells, 75.7 / 87.7 %,
-noise 7.5 %, 24/30; ``N = 3`` 29, 70.8 / 80.6 %, 6.4 %, 27/30; ``fill_arrival`` 0.25 / 0.75
-(full grid: 89 / 87 noisy cells; quick: 26/30 at 0.75). No setting keeps every noisy cell
+noise 7.5 %, 24/30; ``N = 3`` 29, 70.8 / 80.6 %, 6.4 %, 27/30; ``fill_arrival = 0.75`` 32,
+26/30; full grid ``fill_arrival = 0.25`` 102 signal cells, 89 noisy cells within 10 %
+(0.5: 104, 87). No setting keeps every noisy cell
 within 10 %, so :func:`~evedge.detector.intra.noise_params` leaves the fill off.
 
 Clean low contrast hardly gains, whatever the rule, because the fill is causal and
