@@ -38,6 +38,8 @@ _EXPORTS = {
     "fit_window": "intra",
     "fit_windows": "intra",
     "WindowFit": "intra",
+    "NeighbourFill": "fill",
+    "fill_lifetimes": "fill",
     "EdgeImage": "edges",
     "edge_frames": "edges",
     "detect": "pipeline",
