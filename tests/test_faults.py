@@ -116,13 +116,15 @@ def test_kill_9_during_bench_leaves_the_old_or_the_new_run_and_a_rerun_succeeds(
     args = lambda o, seed: ("bench", "ransac", "-o", o, "--quick", "--repetitions", "2", "--seed", seed,  # noqa: E731
                             "--no-progress", "--overwrite")
     runs = {}
-    for seed in (0, 1):  # the two complete runs, each built from scratch (same seed = same bytes)
-        code, text, full_s = _run(*args(tmp_path / f"ref{seed}", seed))
-        assert code == 0, text
+    # the two complete runs, each built from scratch (same seed = same bytes), side by side
+    procs = {seed: _cli(*args(tmp_path / f"ref{seed}", seed)) for seed in (0, 1)}
+    for seed, proc in procs.items():
+        out_text, err_text = proc.communicate(timeout=120)
+        assert proc.returncode == 0, out_text + err_text
         runs[seed] = _folder_digest(tmp_path / f"ref{seed}")
     # every file but the constant bench marker differs between the seeds, so a mix would show
     assert runs[0].keys() == runs[1].keys() and all(runs[0][k] != runs[1][k] for k in runs[0] if k != ".evedge-bench")
-    code, text, _ = _run(*args(out, 0))
+    code, text, full_s = _run(*args(out, 0))  # alone: the run time the kill delays are drawn within
     assert code == 0 and _folder_digest(out) == runs[0], text
     current = 0
     for delay in np.random.default_rng(14).uniform(0.3, 1.1, 3) * full_s:  # start-up, computing, writing, swap

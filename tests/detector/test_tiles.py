@@ -8,7 +8,7 @@ import pytest
 from evedge.detector import detect, filter_events
 from evedge.detector._tiles import check_n_tiles, strips
 from evedge.detector.buffer import BufferParams
-from evedge.detector.intra import IntraParams, IntraPixelLifetime, estimate_lifetimes, noise_params
+from evedge.detector.intra import IntraParams, IntraPixelLifetime, estimate_lifetimes, noise_params, robust_params
 from evedge.events import EVENT_DTYPE, SensorSize
 
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
@@ -59,14 +59,14 @@ def test_estimator_strips_on_the_real_recording(stripes_events):
         assert estimate_lifetimes(sub, size, n_tiles=n).tobytes() == serial.tobytes(), n
 
 
+# options on only as the presets have them together (the rules that are a value, not None when off, alone too):
+# numba compiles the strip kernels once per combination of the options off as None, ~10 s each cold
 @pytest.mark.parametrize("params", [IntraParams(burst_lifetimes=0.0), IntraParams(window_size=7, per_polarity=False),
                                     IntraParams(burst_lifetimes=2.0, seed=5),
-                                    IntraParams(split_gap_ratio=1.5, event_on_plane=1.0),
-                                    IntraParams(burst_startup=True, border_px=2),
-                                    IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
-                                                startup_reach=1.0),
-                                    IntraParams(split_gap_ratio=3.0, event_on_plane=1.0, newer_share_max=0.25,
-                                                burst_span_lifetimes=1.5, lifetime_agreement=2.0)])
+                                    robust_params(split_gap_ratio=1.5, split_jump_check=False, stale_fraction=0.0,
+                                                  startup_reach=0.0, refine_window=9),
+                                    IntraParams(burst_startup=True, border_px=2), robust_params(),
+                                    noise_params(burst_span_lifetimes=1.5)])
 def test_estimator_strips_other_parameters(shapes, params):
     events, size = shapes
     sub = events[:40_000]
@@ -144,14 +144,14 @@ def one_worker_small_turns(monkeypatch):
     numba.set_num_threads(before)
 
 
+# each noise rule alone is on top of the robust options (the noise preset's other option types)
 @pytest.mark.parametrize("params", [IntraParams(), IntraParams(burst_startup=False),
-                                    IntraParams(split_gap_ratio=1.5, event_on_plane=1.0, border_px=2),
+                                    robust_params(split_gap_ratio=1.5, border_px=2),
                                     IntraParams(window_size=7, per_polarity=False, burst_lifetimes=2.0),
-                                    IntraParams(split_gap_ratio=3.0, split_jump_check=True, stale_fraction=0.5,
-                                                startup_reach=1.0),
-                                    IntraParams(stale_fraction=0.5), IntraParams(startup_reach=2.0),
-                                    IntraParams(burst_span_lifetimes=1.5), IntraParams(lifetime_agreement=1.3),
-                                    IntraParams(newer_share_max=0.25), noise_params(burst_span_lifetimes=1.5)])
+                                    robust_params(), IntraParams(stale_fraction=0.5), IntraParams(startup_reach=2.0),
+                                    noise_params(newer_share_max=1.0, lifetime_agreement=0.0, burst_span_lifetimes=1.5),
+                                    noise_params(newer_share_max=1.0, lifetime_agreement=1.3),
+                                    noise_params(lifetime_agreement=0.0), noise_params(burst_span_lifetimes=1.5)])
 def test_estimator_strips_with_constant_deferrals(shapes, one_worker_small_turns, params):
     """Out-of-order runs, full queues and halo replays waiting for a neighbour: still the serial bytes."""
     events, size = shapes
@@ -213,7 +213,7 @@ def test_estimator_strips_carry_the_lifetimes_the_noise_rule_reads():
 
     rec = simulate(parse_scene(build("stripes", 40, 30, 3, angle_deg=20, speed=300, r=3.0, noise_hz=5.0), "t"),
                    progress=False)
-    params = IntraParams(lifetime_agreement=1.3)
+    params = noise_params(newer_share_max=1.0, lifetime_agreement=1.3)  # the rule alone on the robust options
     serial = estimate_lifetimes(rec.events, rec.sensor_size, params)
-    assert 0 < serial["valid"].sum() < estimate_lifetimes(rec.events, rec.sensor_size)["valid"].sum()
+    assert 0 < serial["valid"].sum() < estimate_lifetimes(rec.events, rec.sensor_size, robust_params())["valid"].sum()
     assert estimate_lifetimes(rec.events, rec.sensor_size, params, n_tiles=10).tobytes() == serial.tobytes()

@@ -159,12 +159,12 @@ def test_lifetime_columns_as_a_dict_and_released_give_the_same_file(tmp_path, mo
     assert not (tmp_path / "bad.h5").exists()
 
 
-def test_released_columns_are_freed_while_the_image_grows(tmp_path):
-    import gc
+def test_released_columns_are_freed_while_the_image_grows(tmp_path, monkeypatch):
     import weakref
 
     from evedge.io import detection
 
+    monkeypatch.setattr(detection, "_WRITE_ROWS", 1 << 12)  # the sliced writes at a size the test can afford
     n = 3 * detection._WRITE_ROWS // 2
     d = _big_detection(n)
     cols = {name: np.ascontiguousarray(d.lifetimes[name]) for name, _ in LIFETIME_COLUMNS}
@@ -174,7 +174,8 @@ def test_released_columns_are_freed_while_the_image_grows(tmp_path):
     real = detection._dataset
 
     def spy(group, name, data, *args):
-        gc.collect()
+        # no gc.collect(): freed means freed by reference counting, at once (a collection of the whole
+        # heap of a long test session per dataset costs seconds, and would hide a reference cycle)
         seen[f"{group.name}/{name}"] = (ev_ref() is None, sorted(k for k, r in refs.items() if r() is None))
         real(group, name, data, *args)
 
