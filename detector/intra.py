@@ -694,8 +694,8 @@ ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, 
 def _preset(base: dict, overrides: dict) -> IntraParams:
     kw = {**base, **overrides}
     if "window_size" in overrides and "refine_window" not in overrides and kw.get("refine_window"):
-        # the ring keeps its width (two cells each side of the 5 x 5 fit) around a larger fit window
-        kw["refine_window"] = int(overrides["window_size"]) + ROBUST["refine_window"] - 5
+        # the ring keeps its width (two cells each side of the default fit window) around another one
+        kw["refine_window"] = int(overrides["window_size"]) + ROBUST["refine_window"] - IntraParams.window_size
     return IntraParams(**kw)
 
 
