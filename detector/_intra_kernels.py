@@ -766,7 +766,8 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
-                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None):
+                  t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None,
+                  fits=None):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -823,8 +824,20 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     2-means, RANSAC, the rules) sees the window of half-size ``refine``, and
     :func:`_refine` refits its plane with the points of the window of half-size
     ``half`` on it (``half`` is then the radius the event reads, for the strips).
+
+    Burst reuse (``fits``, float64 of two per SAE cell: ``a, b`` of the last fit of
+    the pixel's current burst, NaN = none; empty or None = off): an event that
+    continues its pixel's burst, whose burst holds a fit, takes that fit (its
+    plane, and so its lifetime and flow) instead of fitting again; the fit rules
+    are not run again (``lifetime_agreement`` included), the reporting rules
+    (border, start-up) are, on the same plane and burst time. Every fit of a
+    burst's event that gives an estimate stores its plane; one that gives none
+    clears it.
     """
     log_fail = _log_fail(stop_prob)
+    use_fits = False
+    if fits is not None:
+        use_fits = fits.shape[0] > 0
     fh = half  # the fit's window half-size
     if refine is not None:
         fh = refine
@@ -850,7 +863,14 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         ok = False
         a = np.nan
         b = np.nan
-        for attempt in range(2):
+        n = 0
+        reused = use_fits and cont and not math.isnan(fits[2 * si])
+        if reused:  # burst reuse: the burst's fit, at the burst's first time
+            tk = sae[si]
+            ok = True
+            a = fits[2 * si]
+            b = fits[2 * si + 1]
+        for attempt in range(0 if reused else 2):
             if cont or trial:
                 tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
             else:
@@ -880,9 +900,12 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         if noise is not None:
             # noise rule (module _noise_kernels): the lifetime agrees with the inlier pixels' own estimates
             agree = noise[_AGREE]
-            if ok and agree > 0.0:
+            if ok and agree > 0.0 and not reused:
                 ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
                                       math.sqrt(a * a + b * b), agree)
+        if use_fits and not reused:
+            fits[2 * si] = a if ok else np.nan
+            fits[2 * si + 1] = b if ok else np.nan
         # border rule: the fit still feeds the burst state below, but is not reported
         # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border

@@ -334,8 +334,8 @@ def _halo_event(k, si, tk, pk, sae, prev_t, prev_lt, prev_pol, dec, dec_lt, burs
 
 
 @njit(cache=True)
-def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec, dec_lt, width,
-           height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m):
+def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, fits, row0, rows, own_lo, own_hi, dec, dec_lt,
+           width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m):
     """Run the batch ``bpos[:m]`` (owned events, positions in ``seg``) through :func:`_intra_stream`."""
     if m == 0:
         return
@@ -343,7 +343,7 @@ def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_
         bidx[i] = seg[bpos[i]]
     _intra_stream(x, y, t, p, bidx[:m], 0, g0, sae, prev_t, prev_lt, prev_pol, kargs[0], width, height, row0, rows,
                   own_lo, own_hi, dec, dec_lt, kargs[1], kargs[2], *kargs[3:22], bl[:m], bvx[:m], bvy[:m],
-                  bvalid[:m], wf, wi, *kargs[22:])
+                  bvalid[:m], wf, wi, *kargs[22:], fits)
     for i in range(m):
         jp = bpos[i]
         out_lt[jp] = bl[i]
@@ -353,7 +353,7 @@ def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_
 
 
 @njit(cache=True)
-def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt, qrow, queue, st, row0, rows,
+def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, fits, qcnt, qrow, queue, st, row0, rows,
                own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos,
                bidx, bl, bvx, bvy, bvalid, stats, par, me):
     """Run one strip for up to ``budget`` events, out of time order where that is provably the same.
@@ -439,7 +439,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
         k = seg[jp]
         if own_lo <= y[k] < own_hi:
             if m == nb:
-                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me],
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, fits, row0, rows, own_lo, own_hi, dec[me],
                        dec_lt[me], width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl,
                        bvx, bvy, bvalid, m)
                 n_batches += 1
@@ -450,7 +450,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             near_hi += 1 if y[k] >= own_hi - half else 0
         else:
             if (near_lo > 0 and y[k] < own_lo) or (near_hi > 0 and y[k] >= own_hi):
-                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me],
+                _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, fits, row0, rows, own_lo, own_hi, dec[me],
                        dec_lt[me], width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl,
                        bvx, bvy, bvalid, m)
                 n_batches += 1
@@ -459,7 +459,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
             _halo_event(k, (pl + y[k] - row0) * width + x[k], t[k], np.int8(1 if p[k] else 0), sae, prev_t, prev_lt,
                         prev_pol, dec[par[y[k]]], dec_lt[par[y[k]]], burst, startup, agree, span, True)
         done += 1
-    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, row0, rows, own_lo, own_hi, dec[me], dec_lt[me],
+    _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, fits, row0, rows, own_lo, own_hi, dec[me], dec_lt[me],
            width, height, kargs, out_lt, out_vx, out_vy, out_valid, wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, m)
     n_batches += 1 if m > 0 else 0
     stats[0] += n_batches
@@ -471,7 +471,7 @@ def _run_strip(budget, x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, qcnt
 
 
 @njit(parallel=True, cache=True)
-def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, qcnt, roff,
+def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev_t, prev_lt, prev_pol, fits, qcnt, roff,
                     qrow, queue, qoff, lo, rows, own_lo, own_hi, dec, dec_lt, width, height, kargs, out_lt, out_vx,
                     out_vy, out_valid, stats, work, par):
     """``n_threads`` workers share the strips: each takes any free strip, runs it (:func:`_run_strip`) for
@@ -490,6 +490,7 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
     """
     half = kargs[2]
     n_tiles = lo.shape[0]
+    fo = 2 if fits.shape[0] > 0 else 0  # burst reuse: two values per cell (empty: off)
     busy = np.zeros(n_tiles, np.int64)
     fin = np.zeros(n_tiles, np.int64)
     state = np.zeros((n_tiles, 3), np.int64)
@@ -517,7 +518,7 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
                     o1 = off[s + 1]
                     c0 = _clock_ns(_THREAD_CPU)
                     done = _run_strip(turn, x, y, t, p, g0, idx[a:b], sae[o0:o1], prev_t[o0:o1], prev_lt[o0:o1],
-                                      prev_pol[o0:o1], qcnt[o0:o1], qrow[roff[s]:roff[s + 1]],
+                                      prev_pol[o0:o1], fits[fo * o0:fo * o1], qcnt[o0:o1], qrow[roff[s]:roff[s + 1]],
                                       queue[qoff[s]:qoff[s + 1]], state[s], lo[s], rows[s], own_lo[s], own_hi[s],
                                       dec, dec_lt, width, height, kargs, out_lt[a:b], out_vx[a:b], out_vy[a:b],
                                       out_valid[a:b], wf, wi, bpos, bidx, bl, bvx, bvy, bvalid, stats[s], par, s % 2)
@@ -586,7 +587,7 @@ def _put_owned(idx, starts, y, own_lo, own_hi, slot_lt, slot_vx, slot_vy, slot_v
 
 
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
-                stats: np.ndarray | None = None, work: np.ndarray | None = None):
+                stats: np.ndarray | None = None, work: np.ndarray | None = None, fits: np.ndarray | None = None):
     """The intra-pixel estimator over ``n_tiles`` strips; the serial result (module notes).
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
@@ -600,6 +601,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64
     ``(n_tiles, 4)``, or 5 for the strips' CPU time)
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
+    ``fits`` (burst reuse, :func:`_intra_stream`; flat, two per SAE cell; None or empty: off) is
+    updated in place as ``state``; only owned pixels read or write it (halo events are not fitted).
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
@@ -616,10 +619,16 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     roff[1:] = np.cumsum(planes * rows)
     qoff = np.zeros(n_tiles + 1, np.int64)
     qoff[1:] = np.cumsum(np.full(n_tiles, 1 << max(int(_QUEUE_MAX) - 1, 1).bit_length()))
-    local = [np.empty(off[-1], a.dtype) for a in state]
+    reuse = fits is not None and fits.size > 0
+    if reuse:
+        state = (*state, fits.reshape(planes, height, 2 * width))
+    local = [np.empty(off[-1] * (l.shape[2] // width), l.dtype) for l in state]
     for s in range(n_tiles):
         for g, l in zip(state, local):
-            l[off[s]:off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
+            c = g.shape[2] // width
+            l[c * off[s]:c * off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
+    if not reuse:
+        local.append(np.empty(0))
     dec = np.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
     par = np.zeros(height, np.int64)
     for s in range(n_tiles):
@@ -639,4 +648,5 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
         for g, l in zip(state, local):
-            g[:, a:b, :] = l[off[s]:off[s + 1]].reshape(planes, rows[s], width)[:, a - lo[s]:b - lo[s], :]
+            c = g.shape[2] // width
+            g[:, a:b, :] = l[c * off[s]:c * off[s + 1]].reshape(planes, rows[s], c * width)[:, a - lo[s]:b - lo[s], :]

@@ -583,6 +583,15 @@ class IntraParams:
         that read the lifetime may decide a few events differently). 9 in
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
+    burst_reuse : bool
+        With ``burst_lifetimes > 0``: an event that continues its pixel's burst
+        takes the burst's last fit (plane, lifetime, flow) instead of fitting
+        its window again (default False: every event is fitted, as before). A
+        burst is one passage of the edge, so one lifetime; the fit rules
+        (including ``lifetime_agreement``) are not run again, the reporting
+        rules (``border_px``, ``startup_reach``) are. Speed (issue 12): the
+        continuing events are ~half of ``stripes.mat``'s and most of the
+        simulated ones. See the module notes ("burst reuse").
     fill_neighbours : int
         0..8. Above 0, after the estimator, an event it left without estimate gets
         the median lifetime of its recent neighbours' estimates (same polarity
@@ -626,6 +635,7 @@ class IntraParams:
     lifetime_agreement: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
+    burst_reuse: bool = False
     fill_neighbours: int = 0
     fill_tolerance: float = 0.5
     fill_agreement: float = 1.5
@@ -674,7 +684,8 @@ class IntraParams:
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check",
+                     "burst_reuse"):
             check_bool(own, name, getattr(self, name))
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px",
                      "refine_window", "fill_neighbours"):
@@ -805,6 +816,8 @@ class IntraPixelLifetime:
         self._prev_t = np.zeros(self.sae.times_us.size, dtype=np.int64)
         self._prev_lt = np.full(self.sae.times_us.size, np.nan)
         self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
+        # burst reuse: the plane (a, b) of each pixel's current burst, NaN = none; empty = off
+        self._prev_fit = np.full(2 * self.sae.times_us.size if self.params.burst_reuse else 0, np.nan)
         self._n_seen = 0
         self._last_time: int | None = None
         self._t_start: int | None = None  # the first event's time (start-up rule)
@@ -843,11 +856,12 @@ class IntraPixelLifetime:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
                           self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half,
-                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:])
+                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:], self._prev_fit)
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
-            intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid))
+            intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid),
+                        fits=self._prev_fit)
         if self._fill is not None:  # serial, after the strips: the same bytes for any n_tiles
             self._fill._apply(x, y, t, p, lt, vx, vy, valid)
         self._n_seen += n

@@ -221,6 +221,7 @@ def ref_stream(events, size, p: IntraParams):
     """Whole estimator on a list of events with a dict SAE (burst grouping, start-up and border rules)."""
     sae = {}
     prev = {}  # (plane, x, y) -> (time, lifetime or nan, polarity) of the pixel's previous event
+    fits = {}  # burst_reuse: (plane, x, y) -> (a, b) of the pixel's current burst's fit, or None
     half = p.window_size // 2
     out = []
     burst = p.burst_lifetimes
@@ -262,7 +263,10 @@ def ref_stream(events, size, p: IntraParams):
                 return None
             return t_ev - int(gap)
 
-        if cont or trial:
+        reused = p.burst_reuse and cont and fits.get(key) is not None
+        if reused:  # burst reuse: the burst's plane; no fit, no fit rule
+            ok, (a, b) = True, fits[key]
+        elif cont or trial:
             ok, a, b = fit(sae[key])  # fitted at the burst's first time
             if trial:
                 lt_fit = math.hypot(a, b)
@@ -274,12 +278,14 @@ def ref_stream(events, size, p: IntraParams):
         else:
             sae[key] = t_ev
             ok, a, b = fit(t_ev, stale_cutoff())
-        if ok and p.lifetime_agreement:
+        if ok and p.lifetime_agreement and not reused:
             known = [prev[q][1] for q in inliers if q in prev and not math.isnan(prev[q][1])]
             if len(known) >= 3:
                 med = float(np.median(known))
                 lt_fit, k = math.hypot(a, b), p.lifetime_agreement
                 ok = lt_fit <= k * med and lt_fit * k >= med
+        if p.burst_reuse and not reused:
+            fits[key] = (a, b) if ok else None
         lt = math.sqrt(a * a + b * b) if ok else math.nan
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
