@@ -74,6 +74,7 @@ half of today's estimator work per event: not reached.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -86,8 +87,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _synthetic_edges import edge_events  # noqa: E402
 
 from _bound_kernel import bound_lifetimes  # noqa: E402
+from _intra_options import PRESETS, _parse_intra  # noqa: E402
 
 from evedge.detector import detect, edge_frames, estimate_lifetimes, filter_events  # noqa: E402
+from evedge.detector.intra import IntraParams  # noqa: E402
 from evedge.events import SensorSize, make_events  # noqa: E402
 
 STRIPES = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "rpg_event_lifetime" / "stripes.mat"
@@ -179,30 +182,30 @@ def load_line():
     return f"load average {one:.2f} (1 min) / {five:.2f} (5 min) on {os.cpu_count()} CPUs"
 
 
-def bench(name, events, size, repeat, tiles, gen4=False):
+def bench(name, events, size, repeat, tiles, params, gen4=False):
     n = events.size
     span_s = (int(events["t"][-1]) - int(events["t"][0])) / 1e6
     print(f"\n== {name}: {n:,} events, {size.width}x{size.height}, {span_s:.2f} s of recording ==")
     print(f"before: {load_line()}")
     kept = filter_events(events, size)
     sub = events[kept]
-    lifetimes = estimate_lifetimes(sub, size)
+    lifetimes = estimate_lifetimes(sub, size, params)
     frame_t = np.arange(int(events["t"][0]), int(events["t"][-1]), 10_000)
     rows = [
         ("buffer (filter_events)", n, lambda: filter_events(events, size)),
-        ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size)),
+        ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size, params)),
         ("  bound: tight reference kernel (kept events)", sub.size,
-         lambda: bound_lifetimes(sub, size.width, size.height)),
+         lambda: bound_lifetimes(sub, size.width, size.height, reuse=params.burst_reuse)),
     ] if not gen4 else [
         ("buffer (filter_events)", n, lambda: filter_events(events, size)),
-        ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size)),
+        ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size, params)),
         ("  (bound and Mueggler baseline: skipped on the Gen4-sized input)", 1, None),
     ]
     rows += [
         (f"edge frames ({frame_t.size} frames at 100 fps)", sub.size,
          lambda: edge_frames(sub, lifetimes, size, frame_t)),
-        ("full pipeline: detect (buffer + estimator)", n, lambda: detect(events, size)),
-        ("full pipeline + edge frames", n, lambda: full_pipeline(events, size, frame_t, 1)),
+        ("full pipeline: detect (buffer + estimator)", n, lambda: detect(events, size, params=params)),
+        ("full pipeline + edge frames", n, lambda: full_pipeline(events, size, frame_t, 1, params)),
     ]
     try:
         from evedge.detector.mueggler import estimate_lifetimes_mueggler
@@ -225,7 +228,7 @@ def bench(name, events, size, repeat, tiles, gen4=False):
     est, bound, full = rows[1][0], rows[2][0], rows[5][0]
     if not gen4:
         print(f"project / bound (estimator, CPU time per event): {rate[bound] / rate[est]:.2f}  (target <= 1.5)")
-        lt_b, valid_b = bound_lifetimes(sub, size.width, size.height)
+        lt_b, valid_b = bound_lifetimes(sub, size.width, size.height, reuse=params.burst_reuse)
         same = (valid_b == lifetimes["valid"]) & (~valid_b | (np.abs(lt_b - lifetimes["lifetime_us"]) <= 1e-9 * lt_b))
         print(f"  the bound's estimates equal the project's (validity, lifetime to 1e-9) for {same.mean():.4f} "
               "of the events")
@@ -237,16 +240,16 @@ def bench(name, events, size, repeat, tiles, gen4=False):
           f"target 3.5 M: ratio {rate[full] / 3.5e6:.2f}")
     if tiles > 1:
         bench_tiles(events, size, repeat, tiles, sub, rate[full], sub.size / rate[rows[3][0]] / n, n / rate[rows[0][0]],
-                    frame_t)
+                    frame_t, params)
     else:
         print(f"Gen4 (1280x720, 20 M events/s): {20e6 / rate[full]:.1f} cores at the measured per-core cost "
               f"({1e9 / rate[full]:.0f} ns/event), with no parallel loss")
     print(f"after: {load_line()}")
 
 
-def full_pipeline(events, size, frame_t, n_tiles):
+def full_pipeline(events, size, frame_t, n_tiles, params):
     """detect (buffer + estimator) and the edge frames, all on ``n_tiles`` strips."""
-    r = detect(events, size, n_tiles=n_tiles)
+    r = detect(events, size, params=params, n_tiles=n_tiles)
     # compress: boolean indexing of the records costs ~4x more
     return r, edge_frames(events.compress(r.kept), r.lifetimes.compress(r.kept), size, frame_t, n_tiles=n_tiles)
 
@@ -272,7 +275,7 @@ def _spy_intra_tiled(fn):
         intra.intra_tiled = real
 
 
-def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, buffer_s, frame_t):
+def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, buffer_s, frame_t, params):
     """Buffer + estimator (detect) and the edge frames on 1 and on ``tiles`` strips, alternated; the load-free
     proxies; the Gen4 projection.
 
@@ -288,14 +291,13 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     from _strip_schedule import simulate_strips
 
     from evedge.detector._tiles import balanced_strips
-    from evedge.detector.intra import IntraParams
 
     threads = numba.get_num_threads()
     if threads < 2:
         print("strips: numba has a single thread; skipped")
         return
-    one, f_one = full_pipeline(events, size, frame_t, 1)
-    many, f_many = full_pipeline(events, size, frame_t, tiles)
+    one, f_one = full_pipeline(events, size, frame_t, 1, params)
+    many, f_many = full_pipeline(events, size, frame_t, tiles, params)
     assert many.lifetimes.tobytes() == one.lifetimes.tobytes() and np.array_equal(many.kept, one.kept)
     assert f_many.tobytes() == f_one.tobytes()
     wall = {k: {"detect": [], "edges": [], "all": []} for k in (1, tiles)}
@@ -303,7 +305,7 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     for _ in range(repeat):
         for k in (1, tiles):
             w0, c0 = time.perf_counter(), time.process_time()
-            r = detect(events, size, n_tiles=k)
+            r = detect(events, size, params=params, n_tiles=k)
             w1 = time.perf_counter()
             edge_frames(events.compress(r.kept), r.lifetimes.compress(r.kept), size, frame_t, n_tiles=k)
             w2 = time.perf_counter()
@@ -323,9 +325,9 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     ser, busy, wait, ratios = [], [], [], []
     for _ in range(max(repeat, 5)):
         c0 = time.thread_time()
-        estimate_lifetimes(sub, size)
+        estimate_lifetimes(sub, size, params)
         ser.append(time.thread_time() - c0)
-        _, calls = _spy_intra_tiled(lambda: estimate_lifetimes(sub, size, n_tiles=tiles))
+        _, calls = _spy_intra_tiled(lambda: estimate_lifetimes(sub, size, params, n_tiles=tiles))
         stats, work = calls[0]
         busy.append(work[:, 0].sum() / 1e9)
         wait.append(work[:, 1].sum() / 1e9)
@@ -342,8 +344,8 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
         f"({stats[s, 4] / max(owned[s], 1):.0f} ns/owned event), {stats[s, 0]:,} batches, {stats[s, 2]} turns"
         for s, (a, b) in enumerate(own)) + f"; events per worker {', '.join(f'{v:,}' for v in work[:, 2])}")
     # the load-free proxy: the simulated schedule on idle workers
-    half = IntraParams().window_size // 2
-    serial_valid = estimate_lifetimes(sub, size)["valid"]
+    half = max(params.window_size, params.refine_window) // 2  # the radius the events read (the strips' halo)
+    serial_valid = estimate_lifetimes(sub, size, params)["valid"]
     sims = {}
     for k in sorted({tiles, 8}):
         sims[k] = simulate_strips(sub, size, k, half=half, valid=serial_valid)
@@ -410,19 +412,30 @@ def main(argv=None):
                     help="strips for the parallel measurement, shared by numba's threads (1 = skip)")
     ap.add_argument("--no-gen4", action="store_true", help="skip the Gen4-sized input (tiled stripes, 1280x720)")
     ap.add_argument("--only", choices=("stripes", "shapes", "gen4"), help="run one input only")
+    ap.add_argument("--preset", choices=sorted(PRESETS), default="defaults",
+                    help="where the estimator's parameters start (default: IntraParams())")
+    ap.add_argument("--intra", action="append", default=[], metavar="KEY=VALUE",
+                    help="an IntraParams field on top of the preset (repeatable), e.g. burst_reuse=true")
     args = ap.parse_args(argv)
+    params = _parse_intra(args.intra, PRESETS[args.preset]())
+    changed = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
+               if getattr(params, f.name) != getattr(IntraParams(), f.name)}
+    print(f"estimator: IntraParams({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
+          + ("" if set(changed) <= {"burst_reuse"} else
+             "; the bound kernel does the defaults' work only (plus burst_reuse): project / bound is not like "
+             "for like"))
     run = (lambda name: args.only in (None, name))
     stripes = load_stripes() if run("stripes") or run("gen4") else None
     if stripes is not None and run("stripes"):
-        bench("stripes.mat (DVS128)", *stripes, args.repeat, args.tiles)
+        bench("stripes.mat (DVS128)", *stripes, args.repeat, args.tiles, params)
     shapes = simulated_shapes() if run("shapes") else None
     if shapes is not None:
-        bench("simulated shapes_translation (evedge.sim)", *shapes, args.repeat, args.tiles)
+        bench("simulated shapes_translation (evedge.sim)", *shapes, args.repeat, args.tiles, params)
     if args.synthetic:
-        bench("synthetic moving edges", *synthetic_240x180(), args.repeat, args.tiles)
+        bench("synthetic moving edges", *synthetic_240x180(), args.repeat, args.tiles, params)
     if stripes is not None and run("gen4") and not args.no_gen4:
         bench("Gen4-sized: stripes.mat tiled 10x6 on 1280x720, 0.1 s", *tiled_stripes_gen4(stripes), args.repeat,
-              args.tiles, gen4=True)
+              args.tiles, params, gen4=True)
 
 
 if __name__ == "__main__":

@@ -51,39 +51,12 @@ import numpy as np
 
 from evedge.bench.robustness import STEADY_US, cells, run_grid, score, tasks
 from evedge.detector.buffer import LINE_RULE, BufferParams
-from evedge.detector.intra import IntraParams, noise_params, robust_params
+from evedge.detector.intra import noise_params, robust_params
 from evedge.detector.pipeline import detect
 from evedge.sim import simulate
 
-
-#: --preset: where the intra parameters start (``--intra`` changes fields on top).
-PRESETS = {"defaults": IntraParams, "robust": robust_params, "noise": noise_params}
-
-
-def _parse_intra(items, base: IntraParams | None = None) -> IntraParams:
-    base = IntraParams() if base is None else base
-    fields = {f.name: f for f in dataclasses.fields(IntraParams)}
-    kw = {}
-    for item in items:
-        key, _, value = item.partition("=")
-        if key not in fields:
-            raise SystemExit(f"--intra: unknown IntraParams field {key!r} (fields: {', '.join(fields)})")
-        default = getattr(IntraParams(), key)
-        try:
-            if isinstance(default, bool):
-                if value.lower() not in ("1", "true", "yes", "on", "0", "false", "no", "off"):
-                    raise ValueError(f"expected true/false, got {value!r}")
-                kw[key] = value.lower() in ("1", "true", "yes", "on")
-            elif isinstance(default, (int, float)):
-                kw[key] = type(default)(float(value))
-            else:
-                kw[key] = value
-        except ValueError as err:
-            raise SystemExit(f"--intra {key}: {err}") from None
-    try:
-        return dataclasses.replace(base, **kw)
-    except (TypeError, ValueError) as err:
-        raise SystemExit(f"--intra: {err}") from None
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _intra_options import PRESETS, _parse_intra  # noqa: E402  (shared with bench_detector and bench_streaming)
 
 
 #: --buffer-preset: where the proposed detector's buffer parameters start (``--buffer`` changes fields on top).
