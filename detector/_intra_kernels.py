@@ -41,7 +41,7 @@ from numba import njit
 from evedge._splitmix import _splitmix64
 
 from ._atomic import _store_release
-from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _lifetime_agrees, _newer_count
+from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, _lifetime_agrees, _newer_count
 
 _NEVER = np.iinfo(np.int64).min
 
@@ -864,6 +864,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         a = np.nan
         b = np.nan
         n = 0
+        fresh = not cont  # the event does not continue its pixel's burst by the rule above (a trial may make it)
         reused = use_fits and cont and not math.isnan(fits[2 * si])
         if reused:  # burst reuse: the burst's fit, at the burst's first time
             tk = sae[si]
@@ -903,6 +904,10 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             if ok and agree > 0.0 and not reused:
                 ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
                                       math.sqrt(a * a + b * b), agree)
+            # passage gap: a new burst's lifetime is below the time since the pixel's previous same-polarity event
+            gap_k = noise[_PASSAGE_GAP]
+            if ok and gap_k > 0.0 and fresh and prev_pol[si] == pk:
+                ok = math.sqrt(a * a + b * b) <= gap_k * float(t_ev - prev_t[si])
         if use_fits and not reused:
             fits[2 * si] = a if ok else np.nan
             fits[2 * si + 1] = b if ok else np.nan

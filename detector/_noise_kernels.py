@@ -19,6 +19,10 @@ array is None: numba then compiles none of the rules' code (as
 ``_AGREE`` (``IntraParams.lifetime_agreement``; 0 = off)
     Largest ratio between the event's lifetime and the median of its inlier
     pixels' own latest estimates (:func:`_lifetime_agrees`). Stream kernel.
+``_PASSAGE_GAP`` (``IntraParams.passage_gap``; 0 = off)
+    Largest ratio between the lifetime of an event that starts a new burst and
+    the time since its pixel's previous event of the same polarity (two passages
+    closer than one lifetime are closer than one pixel). Stream kernel.
 """
 
 import math
@@ -32,8 +36,10 @@ _NEWER = 0
 _BURST_SPAN = 1
 #: Slot of ``lifetime_agreement`` in the ``noise`` array.
 _AGREE = 2
+#: Slot of ``passage_gap`` in the ``noise`` array.
+_PASSAGE_GAP = 3
 #: Length of the ``noise`` array.
-N_NOISE = 3
+N_NOISE = 4
 
 
 #: Inlier pixels with an estimate needed before ``lifetime_agreement`` judges (fewer: the event is kept).

@@ -439,7 +439,7 @@ from evedge._validate import check_bool, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
 from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
-from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
+from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .fill import ARRIVAL, NeighbourFill, check_fill
 from .result import LIFETIME_DTYPE, empty_lifetimes
@@ -563,6 +563,14 @@ class IntraParams:
         factor above or below the median of its inlier pixels' own latest
         estimates (when at least 3 of them have one; fewer: kept). Default 0
         = off (the paper). See the module notes ("noise").
+    passage_gap : float
+        >= 0. No estimate for an event that starts a new burst (it does not
+        continue its pixel's burst) when its lifetime is more than this factor
+        times the time since the pixel's previous event of the same polarity:
+        two passages of an edge closer than one lifetime are closer than one
+        pixel, so such a plane joins points of different passages (seen where
+        pixels fire on few passages: low contrast, fast edges). Default 0 = off
+        (the paper). See the module notes ("passage gap").
     ls_first : float
         In [0, 1]. Least squares first (issue 12): above 0, the plane through
         the current event is first fitted to the whole kept cluster by least
@@ -633,6 +641,7 @@ class IntraParams:
     newer_share_max: float = 1.0
     burst_span_lifetimes: float = 0.0
     lifetime_agreement: float = 0.0
+    passage_gap: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
     burst_reuse: bool = False
@@ -671,6 +680,7 @@ class IntraParams:
         check_positive(own, "newer_share_max", self.newer_share_max)
         check_positive(own, "burst_span_lifetimes", self.burst_span_lifetimes, allow_zero=True)
         check_positive(own, "lifetime_agreement", self.lifetime_agreement, allow_zero=True)
+        check_positive(own, "passage_gap", self.passage_gap, allow_zero=True)
         check_real(own, "ls_first", self.ls_first, 0.0, 1.0, low_open=False, high_open=False)
         if 0 < self.lifetime_agreement <= 1:
             raise ValueError(f"{own}.lifetime_agreement must be 0 (off) or > 1, got {self.lifetime_agreement}")
@@ -692,7 +702,7 @@ class IntraParams:
             object.__setattr__(self, name, int(getattr(self, name)))
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
-                     "burst_span_lifetimes", "lifetime_agreement", "ls_first", "fill_tolerance", "fill_agreement",
+                     "burst_span_lifetimes", "lifetime_agreement", "passage_gap", "ls_first", "fill_tolerance", "fill_agreement",
                      "fill_arrival"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
@@ -751,7 +761,7 @@ def noise_args(params: IntraParams) -> np.ndarray | None:
     Examples
     --------
     >>> noise_args(IntraParams(newer_share_max=0.25))
-    array([0.25, 0.  , 0.  ])
+    array([0.25, 0.  , 0.  , 0.  ])
     >>> noise_args(IntraParams()) is None
     True
     """
@@ -759,7 +769,9 @@ def noise_args(params: IntraParams) -> np.ndarray | None:
     out[_NEWER] = params.newer_share_max
     out[_BURST_SPAN] = params.burst_span_lifetimes
     out[_AGREE] = params.lifetime_agreement
-    if params.newer_share_max == 1.0 and params.burst_span_lifetimes == 0.0 and params.lifetime_agreement == 0.0:
+    out[_PASSAGE_GAP] = params.passage_gap
+    if (params.newer_share_max == 1.0 and params.burst_span_lifetimes == 0.0 and params.lifetime_agreement == 0.0
+            and params.passage_gap == 0.0):
         return None
     return out
 

@@ -263,6 +263,7 @@ def ref_stream(events, size, p: IntraParams):
                 return None
             return t_ev - int(gap)
 
+        fresh = not cont  # passage_gap: not a continuation by the rule (a trial may make it one)
         reused = p.burst_reuse and cont and fits.get(key) is not None
         if reused:  # burst reuse: the burst's plane; no fit, no fit rule
             ok, (a, b) = True, fits[key]
@@ -284,6 +285,8 @@ def ref_stream(events, size, p: IntraParams):
                 med = float(np.median(known))
                 lt_fit, k = math.hypot(a, b), p.lifetime_agreement
                 ok = lt_fit <= k * med and lt_fit * k >= med
+        if ok and p.passage_gap and fresh and ppol == pol:
+            ok = math.sqrt(a * a + b * b) <= p.passage_gap * float(t_ev - pt)
         if p.burst_reuse and not reused:
             fits[key] = (a, b) if ok else None
         lt = math.sqrt(a * a + b * b) if ok else math.nan
@@ -815,7 +818,8 @@ def test_noise_rules_stream_match_reference():
     base = robust_params(min_points=4, min_inliers=4, split_jump_check=False, stale_fraction=0.0, startup_reach=0.0)
     plain = estimate_lifetimes(ev, size, base)["valid"].sum()
     for rule in (dict(newer_share_max=0.25), dict(burst_span_lifetimes=1.0), dict(lifetime_agreement=1.5),
-                 dict(newer_share_max=0.25, burst_span_lifetimes=1.5, lifetime_agreement=2.0)):
+                 dict(passage_gap=1.0),
+                 dict(newer_share_max=0.25, burst_span_lifetimes=1.5, lifetime_agreement=2.0, passage_gap=0.5)):
         p = replace(base, **rule)
         got = estimate_lifetimes(ev, size, p)
         assert_lifetimes_close(got, ref_stream(ev, size, p))
@@ -1051,3 +1055,41 @@ def test_ls_first_stream_chunked_seeds_and_strips(random_events, edge_events):
     a = estimate_lifetimes(edge, size, IntraParams(ls_first=1.0))
     b = estimate_lifetimes(edge, size, IntraParams(ls_first=0.0))
     assert a.tobytes() != b.tobytes() and a["valid"].sum() > 0.8 * a.size
+
+
+def test_passage_gap_known_answer(edge_events):
+    """Two passages of one edge 3 lifetimes apart at every pixel (one event each): ``passage_gap = k``
+    removes exactly the second passage's estimates whose lifetime is above k x the gap to the pixel's
+    first event (k = 1: none; 0.5: a few badly fitted corners; 0.3: most); nothing else changes (no
+    other rule reads them here, and each pixel has no later event)."""
+    size = SensorSize(16, 12)
+    ev, lifetime = edge_events(size.width, size.height, 500.0, 0.0, n_edges=2, spacing_px=3.0)
+    base = IntraParams(min_inliers=4)
+    off = estimate_lifetimes(ev, size, base)
+    key = ev["y"].astype(np.int64) * size.width + ev["x"]
+    first_t = {}
+    gap = np.full(ev.size, np.nan)  # NaN: the pixel's first event
+    for i, (k, t) in enumerate(zip(key.tolist(), ev["t"].tolist())):
+        if k in first_t:
+            gap[i] = t - first_t[k]
+        first_t.setdefault(k, t)
+    second = np.isfinite(gap)
+    assert second.sum() == ev.size // 2 and np.allclose(gap[second], 3 * lifetime, rtol=0.01)
+    assert off["valid"][second].mean() > 0.8 and off["valid"][~second].mean() > 0.8
+    for k in (1.0, 0.5, 0.3):
+        p = replace(base, passage_gap=k)
+        got = estimate_lifetimes(ev, size, p)
+        removed = second & off["valid"] & (off["lifetime_us"] > k * gap)
+        np.testing.assert_array_equal(got["valid"], off["valid"] & ~removed)
+        keep = ~removed
+        np.testing.assert_array_equal(got[keep].view(np.uint8), off[keep].view(np.uint8))
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+    assert not (second & off["valid"] & (off["lifetime_us"] > gap)).any()  # k = 1 removes none here
+    assert 0 < (second & off["valid"] & (off["lifetime_us"] > 0.5 * gap)).sum() < 10  # k = 0.5: corners only
+    assert (second & off["valid"] & (off["lifetime_us"] > 0.3 * gap)).sum() > 0.5 * second.sum()  # k = 0.3: most
+
+
+@pytest.mark.parametrize("value", [-1.0, float("nan"), "1"])
+def test_bad_passage_gap_is_a_clear_error(value):
+    with pytest.raises((ValueError, TypeError), match="passage_gap"):
+        IntraParams(passage_gap=value)
