@@ -38,7 +38,11 @@ Beside them, in the same run:
   machine is shared, wall-clock figures depend on it.
 
 Run: ``.venv/bin/python benchmarks/bench_detector.py [--repeat 3] [--tiles 2] [--synthetic] [--no-gen4]
-[--only stripes|shapes|gen4]``.
+[--only stripes|shapes|gen4] [--preset defaults|robust|noise] [--intra KEY=VALUE ...]``; ``--preset`` and
+``--intra`` (as in ``robustness_grid.py``, module ``_intra_options``) choose the estimator's
+:class:`~evedge.detector.intra.IntraParams` for every stage (default: ``IntraParams()``), e.g.
+``--intra burst_reuse=true``; the bound then reuses the burst planes too, and does the defaults' work
+for every other option (printed).
 
 What limits the speed (2026-12-01, CPU time, best of 3, load average ~8 on the
 2 CPUs): the intra-pixel estimator, ~0.52 us per kept event on stripes.mat and
