@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 NEVER = np.iinfo(np.int64).min
+FOREVER = np.iinfo(np.int64).max  # the backward pass's "never fires"
 
 
 @njit(cache=True)
@@ -137,6 +138,79 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, heigh
         prev[k] = state[c + 1]
         state[c + 1] = base_g + k
         state[c] = tk
+
+
+# ---------------------------------------------------------------- one shot: two passes, no chains
+#
+# With the whole stream at hand the buffered rule splits in two: event ``k`` is
+# supported when the *latest* same-polarity event before it (stream order) at one of
+# its 8 neighbours is at most ``tau`` earlier (a forward pass, the causal rule), or
+# the *earliest* one after it is at most ``tau`` later (the same pass backwards): the
+# latest before and the earliest after are the nearest in time on each side (the
+# stream is time-sorted), so this is ``|t_j - t_k| <= tau`` for some neighbour event
+# ``j``, the rule :func:`_buffer_scan` implements with its walks. State: one int64
+# time per pixel and polarity, ``(2, height + 2, width + 2)`` with a border that
+# never fires; no chain, no per-event array but the mask.
+
+
+@njit(cache=True)
+def _support_before(x, y, t, p, supported, width, height, tau_us):
+    """Set ``supported[k]``: a neighbour's latest event before ``k`` (stream order) is at most ``tau_us`` earlier.
+
+    The causal rule, exactly as :func:`_buffer_scan` decides it (``last_t >= lo`` with
+    the same treatment of a window starting at the int64 floor). Checks the events on
+    the way (the input checks of :func:`evedge.events.validate_events`, in the same
+    pass): returns -1, or the index of the first event outside the sensor or earlier
+    than the one before it, where it stops (the mask is then incomplete).
+    """
+    row = width + 2
+    plane = (height + 2) * row
+    state = np.full(2 * plane, NEVER, dtype=np.int64)
+    n = x.shape[0]
+    t_prev = t[0] if n else 0
+    for k in range(n):
+        xk = x[k]
+        yk = y[k]
+        tk = t[k]
+        if xk < 0 or xk >= width or yk < 0 or yk >= height or tk < t_prev:
+            return k
+        t_prev = tk
+        lo = tk - tau_us
+        lo_n = lo + (lo == NEVER)  # a window starting at the floor does not count "never fired"
+        c = p[k] * plane + (yk + 1) * row + (xk + 1)
+        supported[k] = ((state[c - row - 1] >= lo_n) | (state[c - row] >= lo_n) | (state[c - row + 1] >= lo_n)
+                        | (state[c - 1] >= lo_n) | (state[c + 1] >= lo_n)
+                        | (state[c + row - 1] >= lo_n) | (state[c + row] >= lo_n) | (state[c + row + 1] >= lo_n))
+        state[c] = tk
+    return -1
+
+
+@njit(cache=True)
+def _support_after(x, y, t, p, supported, width, height, tau_us):
+    """Or into ``supported[k]``: a neighbour's earliest event after ``k`` (stream order) is at most ``tau_us`` later.
+
+    After :func:`_support_before` on the same (checked) events, this gives the
+    buffered rule. Exact when no event lies within ``tau_us`` of the int64 range's
+    ends (``t[0] - tau_us > min`` and ``t[-1] + tau_us < max``: no wrap-around, and
+    the "never fires" sentinel, int64 max, is later than every window);
+    :func:`one_shot_exact` says whether the stream qualifies (else :func:`_buffer_scan`).
+    """
+    row = width + 2
+    plane = (height + 2) * row
+    state = np.full(2 * plane, FOREVER, dtype=np.int64)
+    for k in range(x.shape[0] - 1, -1, -1):
+        tk = t[k]
+        hi = tk + tau_us
+        c = p[k] * plane + (y[k] + 1) * row + (x[k] + 1)
+        supported[k] |= ((state[c - row - 1] <= hi) | (state[c - row] <= hi) | (state[c - row + 1] <= hi)
+                         | (state[c - 1] <= hi) | (state[c + 1] <= hi)
+                         | (state[c + row - 1] <= hi) | (state[c + row] <= hi) | (state[c + row + 1] <= hi))
+        state[c] = tk
+
+
+def one_shot_exact(t_first: int, t_last: int, tau_us: int) -> bool:
+    """Whether :func:`_support_after` is exact for a stream from ``t_first`` to ``t_last`` (module notes)."""
+    return int(t_first) - int(NEVER) > tau_us and int(FOREVER) - int(t_last) > tau_us
 
 
 @njit(cache=True)

@@ -57,7 +57,8 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import _buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state
+from ._buffer_kernels import (_buffer_scan, _line_scan, _n_decided, _support_after, _support_before, empty_line_state,
+                              empty_state, one_shot_exact)
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from evedge._validate import check_real
@@ -293,24 +294,49 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     """
     sensor_size = check_sensor_size(sensor_size)
     params = _check_params(params)
-    events = check_events(events, sensor_size)
-    return _filter(events, sensor_size, params, check_n_tiles(n_tiles, sensor_size.height))
+    plain = isinstance(events, np.ndarray) and events.dtype == EVENT_DTYPE and events.ndim == 1
+    if not plain:  # converted and checked here; plain events are checked by the serial kernel on its way
+        events = check_events(events, sensor_size)
+    try:
+        n_tiles = check_n_tiles(n_tiles, sensor_size.height)
+    except (TypeError, ValueError):
+        check_events(events, sensor_size)  # the events' error first, as their checks come first
+        raise
+    if n_tiles > 1 and plain:
+        events = check_events(events, sensor_size)
+    return _filter(events, sensor_size, params, n_tiles)
 
 
 def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int) -> np.ndarray:
-    """:func:`filter_events` on validated events and parameters."""
+    """:func:`filter_events` on checked parameters and events of :data:`EVENT_DTYPE`.
+
+    Serially (``n_tiles == 1``) the events need not be checked: the first pass checks
+    them (range and order, in the same pass) and, on a bad event, :func:`check_events`
+    raises its error.
+    """
     w, h = sensor_size.width, sensor_size.height
     n = events.shape[0]
+    causal = params.mode == "causal"
     if n_tiles > 1:
         x, y, t, p = columns(events)
-        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles,
+        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, causal, n_tiles,
                             params.line_window_us, params.line_tolerance, params.line_quiet, params.line_count)
-    # one pass: the kernel reads the event fields in place (strided views, no int64 copies: on a
-    # 10 M-event file the copies cost as much as the scan, most of it first touches of fresh memory)
+    supported = np.empty(n, dtype=bool)
+    if n == 0:
+        return supported
+    # the kernels read the event fields in place (strided views: no int64 copies, which on a
+    # 10 M-event file cost as much as a pass, most of it first touches of fresh memory)
     x, y, t, p = events["x"], events["y"], events["t"], events["p"]
-    supported = np.empty(n, dtype=bool)  # every entry set by the kernel, as is prev
-    _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h,
-                 params.tau_min_us, params.mode == "causal")
+    bad = _support_before(x, y, t, p, supported, w, h, params.tau_min_us)
+    if bad >= 0:
+        check_events(events, sensor_size)  # raises, naming the first bad event
+        raise AssertionError(f"event {bad} failed the buffer's checks but passed check_events")
+    if not causal:
+        if one_shot_exact(t[0], t[-1], params.tau_min_us):
+            _support_after(x, y, t, p, supported, w, h, params.tau_min_us)
+        else:  # times within tau of the int64 range's ends: the streaming kernel (one-event chains)
+            _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h,
+                         params.tau_min_us, False)
     if params.line_window_us:
         _line_scan(x, y, t, p, supported, 0, 0, empty_line_state(w, h), w, h, params.line_window_us,
                    params.line_tolerance, params.line_quiet, params.line_count)
