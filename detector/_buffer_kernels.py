@@ -233,7 +233,9 @@ def _n_decided(t, supported, t_latest, tau_us, causal):
 # Its own per-pixel state, flat int64 laid out as ``(2, height + 4, width + 4, 3)``
 # (:func:`new_line_state`): a border of two pixels that never fire, so the rule's
 # reads two pixels out need no bounds checks. ``[..., 0]`` is the pixel's latest
-# timestamp (:data:`NEVER`: none), ``[..., 1]`` the global index of that event,
+# timestamp (:data:`NEVER`: none), ``[..., 1]`` the global index of that event
+# (-1: none, or it needs no mark: supported when it came or marked since; marking is
+# idempotent, so skipping those changes no decision),
 # ``[..., 2]`` the timestamp of the pixel's event before it (:data:`NEVER`: none).
 
 LINE_FIELDS = 3
@@ -309,11 +311,14 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
                     continue
                 step = dy * row + LINE_FIELDS * dx
                 c = u + step
+                gc = state[c + 1]
+                if gc < base_g:  # no event to mark there (most often: supported when it came, or marked since)
+                    continue
                 tc = state[c]
                 if tc < lo_n:
                     continue
-                gc = state[c + 1]
-                if gc < base_g or supported[gc - base_g]:
+                if supported[gc - base_g]:  # supported since (streaming: a later chunk's walk)
+                    state[c + 1] = -1
                     continue
                 te = state[c + step]
                 if not _midway(te, tc, tk, line_us, line_tol):
@@ -335,6 +340,7 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
                     if not found:
                         continue
                 supported[gc - base_g] = True
+                state[c + 1] = -1
         state[u + 2] = state[u]
         state[u] = tk
-        state[u + 1] = base_g + k
+        state[u + 1] = -1 if supported[k] else base_g + k
