@@ -20,6 +20,34 @@ Equal timestamps: two events with the same timestamp at neighbouring pixels
 support each other in the buffered form; in the causal form only the one later
 in the stream is supported by the other (stream order decides).
 
+One shot (:func:`filter_events`): two passes instead of walks
+    With the whole stream at hand, the buffered rule needs no chains: an event
+    is supported when the latest same-polarity event before it (stream order)
+    at one of its neighbours is at most ``tau_min_us`` earlier (a forward pass,
+    the causal rule), or the earliest one after it at most ``tau_min_us`` later
+    (the same pass backwards): those two are the nearest in time on each side,
+    the stream being time-sorted. The streaming kernel (:class:`EventBuffer`)
+    walks each neighbour's chain of waiting events instead, with an int64 link
+    per event and 16 bytes of state per pixel; the passes keep 8 bytes per pixel
+    and no per-event array but the mask, and the forward pass checks the events
+    (range, order: :func:`evedge.events.validate_events`' checks) on its way, so
+    a 10 M-event array is read twice and not four times. Same bytes as the chain
+    kernel, serial and on strips (``tests/detector/test_buffer_one_shot.py``);
+    a stream within ``tau_min_us`` of the int64 range's ends (where the chain
+    kernel's window wraps around) takes the chain kernel. Measured
+    (``benchmarks/bench_buffer.py``, 2026-12-03, load 4.8 on the 2 CPUs, thread
+    CPU, least of 5; the load inflates both, compare the ratios), previous ->
+    today, ns per event: paper defaults 48.9 -> 17.5 on ``stripes.mat`` and
+    55.0 -> 17.7 on it repeated 30 times (10.2 M events; 2.8x, 3.1x), causal
+    19.2 -> 8.9 and 23.3 -> 8.7, ``line_params()`` 90.2 -> 50.6 and 108.3 -> 55.5
+    (its kernel also skips the neighbours whose latest event is supported
+    already); of today's 17.7 on the 10 M file, the forward pass with the checks
+    ~9-12, the backward ~8 (the previous path's ``check_events`` alone 7.6).
+    ``benchmarks/bench_cli.py`` (load 4.3): "buffer alone (filter_events,
+    checks included)" 17 ns/event on the 10 M file (least of 3; the first 18),
+    18 on ``stripes.mat`` (issue 12 item 4's target <= 40; it was 40-43 / 32-35
+    at load ~1.2).
+
 Line rule (``line_window_us``, a departure from the paper, off by default; :func:`line_params`)
     The 10 ms window removes slow oblique edges: at 10 px/s and 20 degrees the
     nearest neighbour along the edge fires 34 ms away (0.34 lifetimes; 0.45 at
@@ -38,10 +66,12 @@ Line rule (``line_window_us``, a departure from the paper, off by default; :func
     --quick``, ``noise_params()``, README "Robustness"): one pair, 100 ms:
     noise kept by the buffer 37.3 -> 41.8 %, noise given a lifetime 6.2 ->
     7.0 %; two pairs (the preset: 150 ms, tolerance 0.7): 38.9 % and 6.7 %,
-    slow oblique signal kept 66 -> 79 % (median of those cells). Cost: a second
-    pass with its own state, 1.6-1.7x the default buffer's CPU per event on
-    ``stripes.mat`` (``benchmarks/bench_buffer_rules.py``); the default path
-    is unchanged.
+    slow oblique signal kept 66 -> 79 % (median of those cells). Cost: a further
+    pass with its own state (the default path is unchanged), on
+    ``benchmarks/bench_buffer_rules.py`` (2026-12-03, load 3.6, after the two
+    passes above made the default path ~3x cheaper): ``stripes.mat`` 18.0 ->
+    52.0 ns/event (2.9x the default's), the slow oblique noisy cell 16.2 ->
+    101.6 (6.3x; many unsupported events there, each a candidate).
 
 References
 ----------
