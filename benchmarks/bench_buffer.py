@@ -9,13 +9,15 @@ pass, 8 bytes of state per pixel each, no per-event array but the mask (module n
 :mod:`evedge.detector.buffer`).
 
 Inputs: the real ``stripes.mat`` (DVS128, 340 k events) and the same repeated ``--copies`` times one after the
-other (30: 10.2 M events, as ``bench_cli.py``'s file). For each option set (paper defaults, causal, the line rule
+other (30: 10.2 M events, as ``bench_cli.py``'s file); with ``--gen4`` also ``bench_detector.py``'s Gen4-sized
+input (``stripes.mat`` tiled over 1280x720, 0.1 s, 1.6 M events). For each option set (paper defaults, causal, the line rule
 ``line_params()``) it checks that both paths give the same bytes (and the strips, ``n_tiles=2``, too), then prints
 ns/event of each (thread CPU time, least of ``--repeat`` calls after a warm-up: compilation excluded; each call
-allocates its outputs, as a caller's would) and the ratio. Also the shares of today's path: the forward pass
-(checks included), the backward pass. The load average is printed before and after.
+allocates its outputs, as a caller's would) and the ratio. Also today's two passes alone, with the state it
+uses (int32 times relative to the first event when they fit, else int64) and with the other: both passes, the
+forward pass alone (checks included). The load average is printed before and after.
 
-Run: ``.venv/bin/python benchmarks/bench_buffer.py [--copies 30] [--repeat 5]``.
+Run: ``.venv/bin/python benchmarks/bench_buffer.py [--copies 30] [--repeat 5] [--gen4]``.
 """
 
 from __future__ import annotations
@@ -29,12 +31,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_detector import load_stripes  # noqa: E402
+from bench_detector import load_stripes, tiled_stripes_gen4  # noqa: E402
 
 from numba import njit  # noqa: E402
 
-from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, _support_after, _support_before,  # noqa: E402
-                                             empty_line_state, empty_state)
+from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, _two_passes, empty_line_state,  # noqa: E402
+                                             empty_state, narrow_exact)
 from evedge.detector._checks import check_events  # noqa: E402
 from evedge.detector.buffer import BufferParams, filter_events, line_params  # noqa: E402
 
@@ -269,6 +271,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--copies", type=int, default=30)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--gen4", action="store_true", help="also stripes.mat tiled over 1280x720 (bench_detector's)")
     args = ap.parse_args(argv)
     data = load_stripes()
     if data is None:
@@ -277,9 +280,12 @@ def main(argv=None) -> int:
     big = repeated(ev, args.copies)
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs (thread CPU time, least of {args.repeat})")
     rules = [("paper defaults", BufferParams()), ("causal", BufferParams(mode="causal")), ("line_params()", line_params())]
-    w, h = size.width, size.height
-    for name, e in (("stripes.mat", ev), (f"{args.copies} x stripes.mat", big)):
+    inputs = [("stripes.mat", ev, size), (f"{args.copies} x stripes.mat", big, size)]
+    if args.gen4:
+        inputs.append(("Gen4-sized", *tiled_stripes_gen4((ev, size))))
+    for name, e, size in inputs:
         n = e.size
+        w, h = size.width, size.height
         for label, params in rules:
             want = previous_filter(e, size, params)
             got = filter_events(e, size, params)
@@ -294,11 +300,16 @@ def main(argv=None) -> int:
                 raise SystemExit("different decisions")
         x, y, t, p = e["x"], e["y"], e["t"], e["p"]
         sup = np.empty(n, bool)
-        fwd = least(lambda: _support_before(x, y, t, p, sup, w, h, 10_000), args.repeat)
-        bwd = least(lambda: _support_after(x, y, t, p, sup, w, h, 10_000), args.repeat)
+        narrow = narrow_exact(t[0], t[-1], 10_000)
+        parts = []
+        for nar in (narrow, not narrow):
+            fwd = least(lambda: _two_passes(x, y, t, p, sup, w, h, 10_000, True, nar), args.repeat)
+            both = least(lambda: _two_passes(x, y, t, p, sup, w, h, 10_000, False, nar), args.repeat)
+            parts.append(f"{'int32' if nar else 'int64'} state{' (used)' if nar == narrow else ''}: "
+                         f"both {1e9 * both / n:.1f}, forward with the checks {1e9 * fwd / n:.1f}")
         chk = least(lambda: check_events(e, size), args.repeat)
-        print(f"{name:18s} today's parts: forward pass with the checks {1e9 * fwd / n:.1f}, backward pass "
-              f"{1e9 * bwd / n:.1f} ns/event; the previous path's check_events alone {1e9 * chk / n:.1f}")
+        print(f"{name:18s} today's passes, ns/event: {'; '.join(parts)}; the previous path's check_events alone "
+              f"{1e9 * chk / n:.1f}")
     print(f"load average {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -87,8 +87,8 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import (_buffer_scan, _line_scan, _n_decided, _support_after, _support_before, empty_line_state,
-                              empty_state, one_shot_exact)
+from ._buffer_kernels import (_buffer_scan, _line_scan, _n_decided, _two_passes, empty_line_state, empty_state,
+                              narrow_state, one_shot_exact)
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from evedge._validate import check_real
@@ -357,16 +357,14 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
     # the kernels read the event fields in place (strided views: no int64 copies, which on a
     # 10 M-event file cost as much as a pass, most of it first touches of fresh memory)
     x, y, t, p = events["x"], events["y"], events["t"], events["p"]
-    bad = _support_before(x, y, t, p, supported, w, h, params.tau_min_us)
+    tau = params.tau_min_us
+    exact = one_shot_exact(t[0], t[-1], tau)  # (t[-1] may not be the last time yet: then the checks fail)
+    bad = _two_passes(x, y, t, p, supported, w, h, tau, causal or not exact, narrow_state(t[0], t[-1], tau, w, h))
     if bad >= 0:
         check_events(events, sensor_size)  # raises, naming the first bad event
         raise AssertionError(f"event {bad} failed the buffer's checks but passed check_events")
-    if not causal:
-        if one_shot_exact(t[0], t[-1], params.tau_min_us):
-            _support_after(x, y, t, p, supported, w, h, params.tau_min_us)
-        else:  # times within tau of the int64 range's ends: the streaming kernel (one-event chains)
-            _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h,
-                         params.tau_min_us, False)
+    if not (causal or exact):  # times within tau of the int64 range's ends: the chain kernel
+        _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h, tau, False)
     if params.line_window_us:
         _line_scan(x, y, t, p, supported, 0, 0, empty_line_state(w, h), w, h, params.line_window_us,
                    params.line_tolerance, params.line_quiet, params.line_count)

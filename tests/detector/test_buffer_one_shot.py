@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evedge.detector._buffer_kernels import _buffer_scan, _support_after, _support_before, empty_state, one_shot_exact
+from evedge.detector._buffer_kernels import (I32_MAX, _buffer_scan, _two_passes, empty_state, narrow_exact, narrow_state,
+                                             one_shot_exact)
 from evedge.detector._checks import check_events, validated
 from evedge.detector.buffer import BufferParams, EventBuffer, filter_events, line_params
 from evedge.events import SensorSize, make_events
@@ -34,12 +35,9 @@ def _chain_mask(ev, size, tau, causal):
     return sup
 
 
-def _two_pass_mask(ev, size, tau, causal):
-    n = ev.size
-    sup = np.empty(n, bool)
-    assert _support_before(ev["x"], ev["y"], ev["t"], ev["p"], sup, size.width, size.height, tau) == -1
-    if not causal:
-        _support_after(ev["x"], ev["y"], ev["t"], ev["p"], sup, size.width, size.height, tau)
+def _two_pass_mask(ev, size, tau, causal, narrow):
+    sup = np.empty(ev.size, bool)
+    assert _two_passes(ev["x"], ev["y"], ev["t"], ev["p"], sup, size.width, size.height, tau, causal, narrow) == -1
     return sup
 
 
@@ -59,7 +57,8 @@ def test_two_passes_equal_the_chain_kernel(mode, seed):
     causal = mode == "causal"
     want = _chain_mask(ev, size, tau, causal)
     assert 0 < want.sum() < want.size
-    assert _two_pass_mask(ev, size, tau, causal).tobytes() == want.tobytes()
+    for narrow in (False, True):
+        assert _two_pass_mask(ev, size, tau, causal, narrow).tobytes() == want.tobytes()
     assert filter_events(ev, size, BufferParams(tau_min_us=tau, mode=mode)).tobytes() == want.tobytes()
 
 
@@ -90,10 +89,12 @@ def test_line_rule_on_top_of_the_two_passes(stripes_events):
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("end", ["floor", "ceiling"])
 def test_at_the_kernel_switch(mode, end):
-    """Streams starting (ending) within tau of int64's min (max) take the chain kernel; one more us, the passes."""
+    """Streams starting (ending) within tau of int64's min (max) take the chain kernel; one more us, the passes
+    (int64 state: the span is too long for the narrow one)."""
     size = SensorSize(6, 5)
     tau = 50
     base = _random(size, 600, 2_000, 3)
+    base["t"][300:] += 2**40  # a long gap: the int64 state
     rel = base["t"] - base["t"][0]
     for margin in (tau - 1, tau, tau + 1, tau + 2):
         ev = base.copy()
@@ -104,6 +105,7 @@ def test_at_the_kernel_switch(mode, end):
             ev["t"] = I64.max - margin - (rel[-1] - rel)
             exact = one_shot_exact(ev["t"][0], ev["t"][-1], tau)
         assert exact == (margin > tau)
+        assert not narrow_exact(ev["t"][0], ev["t"][-1], tau)
         want = reference_mask(ev, size, tau, mode == "causal")
         params = BufferParams(tau_min_us=tau, mode=mode)
         assert filter_events(ev, size, params).tobytes() == want.tobytes()
@@ -172,3 +174,56 @@ def test_other_dtypes_are_converted_first():
     assert filter_events(other, size).tobytes() == filter_events(ev, size).tobytes()
     assert filter_events(ev[:0], size).shape == (0,)
     assert filter_events(ev[:1], size).tolist() == [False]
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_narrow_state_up_to_its_limit(mode):
+    """int32 times relative to the first event while span + tau < 2**31 - 1: the same bytes; at the limit the
+    backward pass's sentinel would count as an event (so narrow_exact refuses it)."""
+    size = SensorSize(6, 5)
+    tau = 1000
+    causal = mode == "causal"
+    ev = _random(size, 800, 20_000, 6)
+    ev["x"][-1], ev["y"][-1] = 0, 0  # the last event alone, far from the others in time
+    ev["t"][400:-1] += 2**30  # a gap of about 18 min in the middle
+    for span in (None, 2**31 - 2 - tau, 2**31 - 1 - tau):  # None: without the lone event (span ~2**30)
+        e = ev[:-1].copy() if span is None else ev.copy()
+        if span is not None:
+            e["t"][-1] = e["t"][0] + span
+        e["t"] += 10**15
+        span = int(e["t"][-1] - e["t"][0])
+        want = _chain_mask(e, size, tau, causal)
+        assert _two_pass_mask(e, size, tau, causal, False).tobytes() == want.tobytes()
+        ok = narrow_exact(e["t"][0], e["t"][-1], tau)
+        assert ok == (span + tau < I32_MAX)
+        params = BufferParams(tau_min_us=tau, mode=mode)
+        assert filter_events(e, size, params).tobytes() == want.tobytes()
+        assert filter_events(e, size, params, n_tiles=2).tobytes() == want.tobytes()
+        narrow = _two_pass_mask(e, size, tau, causal, True)
+        if ok or causal:
+            assert narrow.tobytes() == want.tobytes()
+        else:  # the lone last event: the sentinel I32_MAX is within its window
+            assert not want[-1] and narrow[-1]
+            assert narrow[:-1].tobytes() == want[:-1].tobytes()
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_large_sensor_takes_the_narrow_state(stripes_events, mode):
+    """On a sensor whose int64 state would not fit L2, filter_events takes the int32 state: the same bytes."""
+    size = SensorSize(400, 300)
+    g = np.random.default_rng(11)
+    ev = stripes_events[:60_000].copy()
+    ev["x"] += g.integers(0, 3) * 128  # the stripes somewhere on the larger sensor, plus uniform noise
+    ev["y"] += 100
+    noise = make_events(g.integers(0, 400, 20_000), g.integers(0, 300, 20_000),
+                        g.integers(int(ev["t"][0]), int(ev["t"][-1]), 20_000), g.random(20_000) < 0.5)
+    ev = np.concatenate([ev, noise])
+    ev = ev[np.argsort(ev["t"], kind="stable")]
+    ev["t"] += 10**12  # relative times fit int32, absolute ones do not
+    assert narrow_state(ev["t"][0], ev["t"][-1], 10_000, 400, 300)
+    assert not narrow_state(ev["t"][0], ev["t"][-1], 10_000, 128, 128)  # a DVS128's state fits: int64
+    want = _chain_mask(ev, size, 10_000, mode == "causal")
+    assert 0 < want.sum() < want.size
+    params = BufferParams(mode=mode)
+    assert filter_events(ev, size, params).tobytes() == want.tobytes()
+    assert filter_events(ev, size, params, n_tiles=3).tobytes() == want.tobytes()
