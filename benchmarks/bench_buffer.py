@@ -36,7 +36,7 @@ from bench_detector import load_stripes, tiled_stripes_gen4  # noqa: E402
 from numba import njit  # noqa: E402
 
 from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, _two_passes, empty_line_state,  # noqa: E402
-                                             empty_state, narrow_exact)
+                                             empty_state, narrow_state)
 from evedge.detector._checks import check_events  # noqa: E402
 from evedge.detector.buffer import BufferParams, filter_events, line_params  # noqa: E402
 
@@ -300,7 +300,7 @@ def main(argv=None) -> int:
                 raise SystemExit("different decisions")
         x, y, t, p = e["x"], e["y"], e["t"], e["p"]
         sup = np.empty(n, bool)
-        narrow = narrow_exact(t[0], t[-1], 10_000)
+        narrow = narrow_state(t[0], t[-1], 10_000, w, h)
         parts = []
         for nar in (narrow, not narrow):
             fwd = least(lambda: _two_passes(x, y, t, p, sup, w, h, 10_000, True, nar), args.repeat)

@@ -28,21 +28,28 @@ One shot (:func:`filter_events`): two passes instead of walks
     (the same pass backwards): those two are the nearest in time on each side,
     the stream being time-sorted. The streaming kernel (:class:`EventBuffer`)
     walks each neighbour's chain of waiting events instead, with an int64 link
-    per event and 16 bytes of state per pixel; the passes keep 8 bytes per pixel
-    and no per-event array but the mask, and the forward pass checks the events
-    (range, order: :func:`evedge.events.validate_events`' checks) on its way, so
-    a 10 M-event array is read twice and not four times. Same bytes as the chain
-    kernel, serial and on strips (``tests/detector/test_buffer_one_shot.py``);
-    a stream within ``tau_min_us`` of the int64 range's ends (where the chain
-    kernel's window wraps around) takes the chain kernel. Measured
-    (``benchmarks/bench_buffer.py``, 2026-12-03, load 4.8 on the 2 CPUs, thread
-    CPU, least of 5; the load inflates both, compare the ratios), previous ->
-    today, ns per event: paper defaults 48.9 -> 17.5 on ``stripes.mat`` and
-    55.0 -> 17.7 on it repeated 30 times (10.2 M events; 2.8x, 3.1x), causal
-    19.2 -> 8.9 and 23.3 -> 8.7, ``line_params()`` 90.2 -> 50.6 and 108.3 -> 55.5
+    per event and 16 bytes of state per pixel; the passes keep one time per
+    pixel and no per-event array but the mask, and the forward pass checks the
+    events (range, order: :func:`evedge.events.validate_events`' checks) on its
+    way, so the events are read twice, not four times. The time is int64, or
+    int32 relative to the first event where that is exact (span + window <
+    2**31 us, 36 min) and the int64 state would not fit a core's L2 cache
+    (512 KiB: larger than a DVS128's; ``_buffer_kernels.narrow_state``). Same
+    bytes as the chain kernel, serial and on strips, either state
+    (``tests/detector/test_buffer_one_shot.py``); a stream within
+    ``tau_min_us`` of the int64 range's ends (where the chain kernel's window
+    wraps around) takes the chain kernel. Measured (``benchmarks/bench_buffer.py
+    --gen4``, 2026-12-03, load 7.5 -> 5.9 on the 2 CPUs, thread CPU, least of
+    5; the load inflates both, compare the ratios), previous -> today, ns per
+    event: paper defaults 48.7 -> 17.8 on ``stripes.mat`` (2.7x), 52.2 -> 17.7
+    on it repeated 30 times (10.2 M events, 3.0x), 172.1 -> 50.5 on the
+    Gen4-sized input (1280x720, 1.6 M events, 3.4x; its int32 state 44.8 against
+    112.9 for the passes in int64 that run); causal 21.2 -> 9.0, 23.4 -> 9.0,
+    83.2 -> 25.0; ``line_params()`` 102.2 -> 53.2, 113.8 -> 55.7, 298.2 -> 208.9
     (its kernel also skips the neighbours whose latest event is supported
-    already); of today's 17.7 on the 10 M file, the forward pass with the checks
-    ~9-12, the backward ~8 (the previous path's ``check_events`` alone 7.6).
+    already). On a DVS128 the int32 state costs 7 % more (18.7 against 17.4),
+    hence the size rule; of the 17.7 on the 10 M file the forward pass with the
+    checks is ~9.5 (the previous path's ``check_events`` alone 6.8).
     ``benchmarks/bench_cli.py`` (load 4.3): "buffer alone (filter_events,
     checks included)" 17 ns/event on the 10 M file (least of 3; the first 18),
     18 on ``stripes.mat`` (issue 12 item 4's target <= 40; it was 40-43 / 32-35
