@@ -35,8 +35,8 @@ from bench_detector import load_stripes, tiled_stripes_gen4  # noqa: E402
 
 from numba import njit  # noqa: E402
 
-from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, _two_passes, empty_line_state,  # noqa: E402
-                                             empty_state, narrow_state)
+from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, empty_line_state, empty_state,  # noqa: E402
+                                             narrow_state, run_passes)
 from evedge.detector._checks import check_events  # noqa: E402
 from evedge.detector.buffer import BufferParams, filter_events, line_params  # noqa: E402
 
@@ -303,8 +303,8 @@ def main(argv=None) -> int:
         narrow = narrow_state(t[0], t[-1], 10_000, w, h)
         parts = []
         for nar in (narrow, not narrow):
-            fwd = least(lambda: _two_passes(x, y, t, p, sup, w, h, 10_000, True, nar), args.repeat)
-            both = least(lambda: _two_passes(x, y, t, p, sup, w, h, 10_000, False, nar), args.repeat)
+            fwd = least(lambda: run_passes(x, y, t, p, sup, w, h, 10_000, True, nar), args.repeat)
+            both = least(lambda: run_passes(x, y, t, p, sup, w, h, 10_000, False, nar), args.repeat)
             parts.append(f"{'int32' if nar else 'int64'} state{' (used)' if nar == narrow else ''}: "
                          f"both {1e9 * both / n:.1f}, forward with the checks {1e9 * fwd / n:.1f}")
         chk = least(lambda: check_events(e, size), args.repeat)

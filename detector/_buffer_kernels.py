@@ -240,6 +240,19 @@ def _two_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narr
                    forward_only)
 
 
+def run_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narrow):
+    """:func:`_two_passes` from Python, with the state made in numpy: only the state type used is compiled.
+
+    (:func:`_two_passes` compiles both, a second or more on a cold start; the strips call it.)
+    """
+    size = 2 * (height + 2) * (width + 2)
+    if narrow:
+        state, forever, t0 = np.full(size, I32_MIN, np.int32), int(I32_MAX), int(t[0]) if t.shape[0] else 0
+    else:
+        state, forever, t0 = np.full(size, NEVER, np.int64), int(FOREVER), 0
+    return _passes(x, y, t, p, supported, state, forever, t0, width, height, tau_us, forward_only)
+
+
 def one_shot_exact(t_first: int, t_last: int, tau_us: int) -> bool:
     """Whether :func:`_support_after` is exact for a stream from ``t_first`` to ``t_last`` (int64 state).
 

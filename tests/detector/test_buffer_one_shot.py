@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from evedge.detector._buffer_kernels import (I32_MAX, _buffer_scan, _two_passes, empty_state, narrow_exact, narrow_state,
-                                             one_shot_exact)
+                                             one_shot_exact, run_passes)
 from evedge.detector._checks import check_events, validated
 from evedge.detector.buffer import BufferParams, EventBuffer, filter_events, line_params
 from evedge.events import SensorSize, make_events
@@ -36,8 +36,12 @@ def _chain_mask(ev, size, tau, causal):
 
 
 def _two_pass_mask(ev, size, tau, causal, narrow):
+    """The passes with the state asked for, as the strips run them (numba) and as filter_events does (numpy state)."""
     sup = np.empty(ev.size, bool)
     assert _two_passes(ev["x"], ev["y"], ev["t"], ev["p"], sup, size.width, size.height, tau, causal, narrow) == -1
+    sup2 = np.empty(ev.size, bool)
+    assert run_passes(ev["x"], ev["y"], ev["t"], ev["p"], sup2, size.width, size.height, tau, causal, narrow) == -1
+    assert sup.tobytes() == sup2.tobytes()
     return sup
 
 
