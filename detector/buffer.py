@@ -35,10 +35,9 @@ One shot (:func:`filter_events`): two passes instead of walks
     int32 relative to the first event where that is exact (span + window <
     2**31 us, 36 min) and the int64 state would not fit a core's L2 cache
     (512 KiB: larger than a DVS128's; ``_buffer_kernels.narrow_state``; only
-    the state type used is compiled: ~1.3 s on a cold start, the chain kernel's
-    ~1.5). Same
-    bytes as the chain kernel, serial and on strips, either state
-    (``tests/detector/test_buffer_one_shot.py``); a stream within
+    the state type used is compiled: ~1.3 s CPU on a cold start, the chain
+    kernel's ~1.5). Same bytes as the chain kernel, serial and on strips, either
+    state (``tests/detector/test_buffer_one_shot.py``); a stream within
     ``tau_min_us`` of the int64 range's ends (where the chain kernel's window
     wraps around) takes the chain kernel. Measured (``benchmarks/bench_buffer.py
     --gen4``, 2026-12-03, load 7.5 -> 5.9 on the 2 CPUs, thread CPU, least of
@@ -371,7 +370,7 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
     bad = run_passes(x, y, t, p, supported, w, h, tau, causal or not exact, narrow_state(t[0], t[-1], tau, w, h))
     if bad >= 0:
         check_events(events, sensor_size)  # raises, naming the first bad event
-        raise AssertionError(f"event {bad} failed the buffer's checks but passed check_events")
+        raise RuntimeError(f"events: event {bad} failed the buffer's checks but passed check_events (a bug)")
     if not (causal or exact):  # times within tau of the int64 range's ends: the chain kernel
         _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h, tau, False)
     if params.line_window_us:
