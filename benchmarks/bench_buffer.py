@@ -10,8 +10,8 @@ pass, 8 bytes of state per pixel each, no per-event array but the mask (module n
 
 Inputs: the real ``stripes.mat`` (DVS128, 340 k events) and the same repeated ``--copies`` times one after the
 other (30: 10.2 M events, as ``bench_cli.py``'s file); with ``--gen4`` also ``bench_detector.py``'s Gen4-sized
-input (``stripes.mat`` tiled over 1280x720, 0.1 s, 1.6 M events). For each option set (paper defaults, causal, the line rule
-``line_params()``) it checks that both paths give the same bytes (and the strips, ``n_tiles=2``, too), then prints
+input (``stripes.mat`` tiled over 1280x720, 0.1 s, 1.6 M events). For each option set (paper defaults, causal,
+the line rule ``line_params()``) it checks that both paths give the same bytes (and the strips, ``n_tiles=2``, too), then prints
 ns/event of each (thread CPU time, least of ``--repeat`` calls after a warm-up: compilation excluded; each call
 allocates its outputs, as a caller's would) and the ratio. Also today's two passes alone, with the state it
 uses (int32 times relative to the first event when they fit, else int64) and with the other: both passes, the
@@ -279,7 +279,8 @@ def main(argv=None) -> int:
     ev, size = data
     big = repeated(ev, args.copies)
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs (thread CPU time, least of {args.repeat})")
-    rules = [("paper defaults", BufferParams()), ("causal", BufferParams(mode="causal")), ("line_params()", line_params())]
+    rules = [("paper defaults", BufferParams()), ("causal", BufferParams(mode="causal")),
+             ("line_params()", line_params())]
     inputs = [("stripes.mat", ev, size), (f"{args.copies} x stripes.mat", big, size)]
     if args.gen4:
         inputs.append(("Gen4-sized", *tiled_stripes_gen4((ev, size))))
@@ -294,7 +295,8 @@ def main(argv=None) -> int:
             old = least(lambda: previous_filter(e, size, params), args.repeat)
             new = least(lambda: filter_events(e, size, params), args.repeat)
             print(f"{name:18s} {label:15s} previous {1e9 * old / n:5.1f}  today {1e9 * new / n:5.1f} ns/event  "
-                  f"({old / new:.2f}x)  same bytes: serial {same}, strips {same_strips}  kept {100 * got.mean():.1f} %  "
+                  f"({old / new:.2f}x)  same bytes: serial {same}, strips {same_strips}  "
+                  f"kept {100 * got.mean():.1f} %  "
                   f"({n:,} events)")
             if not (same and same_strips):
                 raise SystemExit("different decisions")

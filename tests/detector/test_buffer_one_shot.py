@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evedge.detector._buffer_kernels import (I32_MAX, _buffer_scan, _two_passes, empty_state, narrow_exact, narrow_state,
-                                             one_shot_exact, run_passes)
+from evedge.detector._buffer_kernels import (I32_MAX, _buffer_scan, _two_passes, empty_state, narrow_exact,
+                                             narrow_state, one_shot_exact, run_passes)
 from evedge.detector._checks import check_events, validated
 from evedge.detector.buffer import BufferParams, EventBuffer, filter_events, line_params
 from evedge.events import SensorSize, make_events
