@@ -5,17 +5,17 @@ and order, numpy passes over the strided fields), then the chain kernel ``_buffe
 walks each neighbour's chain of unsupported events, an int64 chain entry per event, 16 bytes of state per
 pixel), then, with the line rule, its kernel ``_line_scan`` as it was.
 Today's (:func:`evedge.detector.buffer.filter_events`): a forward pass with the checks fused in and a backward
-pass, 8 bytes of state per pixel each, no per-event array but the mask (module notes of
+pass, one time per pixel (int64, or int32 on large sensors), no per-event array but the mask (module notes of
 :mod:`evedge.detector.buffer`).
 
 Inputs: the real ``stripes.mat`` (DVS128, 340 k events) and the same repeated ``--copies`` times one after the
 other (30: 10.2 M events, as ``bench_cli.py``'s file); with ``--gen4`` also ``bench_detector.py``'s Gen4-sized
 input (``stripes.mat`` tiled over 1280x720, 0.1 s, 1.6 M events). For each option set (paper defaults, causal,
-the line rule ``line_params()``) it checks that both paths give the same bytes (and the strips, ``n_tiles=2``, too), then prints
-ns/event of each (thread CPU time, least of ``--repeat`` calls after a warm-up: compilation excluded; each call
-allocates its outputs, as a caller's would) and the ratio. Also today's two passes alone, with the state it
-uses (int32 times relative to the first event when they fit, else int64) and with the other: both passes, the
-forward pass alone (checks included). The load average is printed before and after.
+the line rule ``line_params()``) it checks that both paths give the same bytes (and the strips, ``n_tiles=2``,
+too), then prints ns/event of each (thread CPU time, least of ``--repeat`` calls after a warm-up: compilation
+excluded; each call allocates its outputs, as a caller's would) and the ratio. Also today's two passes alone,
+with the state ``filter_events`` uses and with the other: both passes, the forward pass alone (checks
+included). The load average is printed before and after.
 
 Run: ``.venv/bin/python benchmarks/bench_buffer.py [--copies 30] [--repeat 5] [--gen4]``.
 """
