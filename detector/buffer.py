@@ -104,6 +104,9 @@ from evedge._validate import check_real
 from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
+#: An event as 13 raw bytes: numpy copies records of the packed EVENT_DTYPE field by field
+#: (~13 ns per event), the same bytes as np.void at memcpy speed (~0.4).
+_RECORD = np.dtype((np.void, EVENT_DTYPE.itemsize))
 
 
 @dataclass(frozen=True)
@@ -220,12 +223,11 @@ class EventBuffer:
         w, h = self.sensor_size.width, self.sensor_size.height
         self._state = empty_state(w, h)  # per pixel and polarity, padded border (see _buffer_kernels)
         self._line_state = empty_line_state(w, h) if self.params.line_window_us else None
-        # the unreleased events are slots [_start, _end) of growable arrays (the events
-        # and their plain columns, converted once on arrival): a chunk costs O(chunk),
-        # not O(events waiting), however long the support window keeps them
+        # the unreleased events are slots [_start, _end) of growable arrays (the events, the
+        # kernel reading their fields in place): a chunk costs O(chunk), not O(events
+        # waiting), however long the support window keeps them
         self._cap = 0
         self._ev = np.empty(0, dtype=EVENT_DTYPE)
-        self._cols = [np.empty(0, dtype=np.int64) for _ in range(4)]  # x, y, t, p
         self._prev = np.empty(0, dtype=np.int64)
         self._supported = np.empty(0, dtype=bool)
         self._start = 0
@@ -247,13 +249,12 @@ class EventBuffer:
         while pending + m > cap // 2:  # at least half free after the move: amortised O(1) per event
             cap *= 2
         sl = slice(self._start, self._end)
-        arrays = [self._ev, *self._cols, self._prev, self._supported]
         new = []
-        for arr in arrays:
+        for arr in (self._ev.view(_RECORD), self._prev, self._supported):
             out = np.empty(cap, dtype=arr.dtype)
             out[:pending] = arr[sl]
             new.append(out)
-        self._ev, self._cols, self._prev, self._supported = new[0], new[1:5], new[5], new[6]
+        self._ev, self._prev, self._supported = new[0].view(EVENT_DTYPE), new[1], new[2]
         self._cap, self._start, self._end = cap, 0, pending
 
     def process(self, events: np.ndarray) -> np.ndarray:
@@ -265,12 +266,12 @@ class EventBuffer:
         m = events.shape[0]
         self._make_room(m)
         a, b = self._end, self._end + m
-        self._ev[a:b] = events
-        for col, field in zip(self._cols, "xytp"):
-            col[a:b] = events[field]  # converted to int64 in place (no temporary column)
+        self._ev[a:b].view(_RECORD)[:] = events.view(_RECORD)
         self._end = b  # prev and supported of the new slots are set by the kernel
         sl = slice(self._start, b)
-        x, y, t, p = (col[sl] for col in self._cols)
+        # the fields in place (strided views; int64 copies of them cost ~1/3 of a chunk's time)
+        ev = self._ev[sl]
+        x, y, t, p = ev["x"], ev["y"], ev["t"], ev["p"]
         tau = self.params.tau_min_us
         causal = self.params.mode == "causal"
         _buffer_scan(x, y, t, p, self._prev[sl], self._supported[sl], a - self._start, self._base_g, self._state,
@@ -295,7 +296,7 @@ class EventBuffer:
             raise ValueError(f"t_us={t_us} is before the newest processed event (t={self._last_time} us)")
         self._last_time = int(t_us)
         sl = slice(self._start, self._end)
-        r = _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.hold_us,
+        r = _n_decided(self._ev["t"][sl], self._supported[sl], self._last_time, self.params.hold_us,
                        self.params.mode == "causal")
         return self._release(r)
 

@@ -231,3 +231,22 @@ def test_large_sensor_takes_the_narrow_state(stripes_events, mode):
     params = BufferParams(mode=mode)
     assert filter_events(ev, size, params).tobytes() == want.tobytes()
     assert filter_events(ev, size, params, n_tiles=3).tobytes() == want.tobytes()
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_streaming_strided_and_read_only_chunks(mode):
+    """The streaming buffer copies each chunk's records as raw bytes: strided and read-only chunks too."""
+    size = SensorSize(10, 8)
+    params = BufferParams(tau_min_us=700, mode=mode)
+    ev = _random(size, 6000, 150_000, 12)
+    sub = ev[::2]  # a strided view
+    assert not sub.flags.c_contiguous
+    ro = sub.copy()
+    ro.flags.writeable = False
+    want = sub[filter_events(sub.copy(), size, params)]
+    assert 0 < want.size < sub.size
+    for stream in (sub, ro):
+        buf = EventBuffer(size, params)
+        chunks = np.array_split(stream, 13)
+        got = np.concatenate([buf.process(c) for c in chunks] + [buf.flush()])
+        assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
