@@ -15,7 +15,8 @@ the line rule ``line_params()``) it checks that both paths give the same bytes (
 too), then prints ns/event of each (thread CPU time, least of ``--repeat`` calls after a warm-up: compilation
 excluded; each call allocates its outputs, as a caller's would) and the ratio. Also today's two passes alone,
 with the state ``filter_events`` uses and with the other: both passes, the forward pass alone (checks
-included). The load average is printed before and after.
+included); and the streaming buffer (:class:`~evedge.detector.buffer.EventBuffer`, the chain kernel) fed in
+chunks of 100 k and 10 k events. The load average is printed before and after.
 
 Run: ``.venv/bin/python benchmarks/bench_buffer.py [--copies 30] [--repeat 5] [--gen4]``.
 """
@@ -38,7 +39,7 @@ from numba import njit  # noqa: E402
 from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, empty_line_state, empty_state,  # noqa: E402
                                              narrow_state, run_passes)
 from evedge.detector._checks import check_events  # noqa: E402
-from evedge.detector.buffer import BufferParams, filter_events, line_params  # noqa: E402
+from evedge.detector.buffer import BufferParams, EventBuffer, filter_events, line_params  # noqa: E402
 
 
 # ---------------------------------------------------------------- the previous kernels (copies, session 6:
@@ -309,6 +310,16 @@ def main(argv=None) -> int:
             both = least(lambda: run_passes(x, y, t, p, sup, w, h, 10_000, False, nar), args.repeat)
             parts.append(f"{'int32' if nar else 'int64'} state{' (used)' if nar == narrow else ''}: "
                          f"both {1e9 * both / n:.1f}, forward with the checks {1e9 * fwd / n:.1f}")
+        for chunk in (100_000, 10_000):  # the streaming buffer (the chain kernel), as a live caller feeds it
+            def stream(chunk=chunk):
+                buf = EventBuffer(size)
+                out = [buf.process(e[i:i + chunk]) for i in range(0, n, chunk)]
+                return out + [buf.flush()]
+            same = np.concatenate(stream()).tobytes() == e[filter_events(e, size)].tobytes()
+            print(f"{name:18s} EventBuffer, chunks of {chunk:,}: {1e9 * least(stream, args.repeat) / n:.1f} ns/event "
+                  f"(paper defaults; same events as filter_events: {same})")
+            if not same:
+                raise SystemExit("different decisions")
         chk = least(lambda: check_events(e, size), args.repeat)
         print(f"{name:18s} today's passes, ns/event: {'; '.join(parts)}; the previous path's check_events alone "
               f"{1e9 * chk / n:.1f}")
