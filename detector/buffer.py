@@ -40,21 +40,31 @@ One shot (:func:`filter_events`): two passes instead of walks
     state (``tests/detector/test_buffer_one_shot.py``); a stream within
     ``tau_min_us`` of the int64 range's ends (where the chain kernel's window
     wraps around) takes the chain kernel. Measured (``benchmarks/bench_buffer.py
-    --gen4``, 2026-12-03, load 7.5 -> 5.9 on the 2 CPUs, thread CPU, least of
+    --gen4``, 2026-12-03, load 3.4 -> 4.8 on the 2 CPUs, thread CPU, least of
     5; the load inflates both, compare the ratios), previous -> today, ns per
-    event: paper defaults 48.7 -> 17.8 on ``stripes.mat`` (2.7x), 52.2 -> 17.7
-    on it repeated 30 times (10.2 M events, 3.0x), 172.1 -> 50.5 on the
-    Gen4-sized input (1280x720, 1.6 M events, 3.4x; its int32 state 44.8 against
-    112.9 for the passes in int64 that run); causal 21.2 -> 9.0, 23.4 -> 9.0,
-    83.2 -> 25.0; ``line_params()`` 102.2 -> 53.2, 113.8 -> 55.7, 298.2 -> 208.9
-    (its kernel also skips the neighbours whose latest event is supported
-    already). On a DVS128 the int32 state costs 7 % more (18.7 against 17.4),
-    hence the size rule; of the 17.7 on the 10 M file the forward pass with the
-    checks is ~9.5 (the previous path's ``check_events`` alone 6.8).
+    event: paper defaults 44.1 -> 18.1 on ``stripes.mat`` (2.4x), 50.1 -> 17.9
+    on it repeated 30 times (10.2 M events, 2.8x), 156.2 -> 48.7 on the
+    Gen4-sized input (1280x720, 1.6 M events, 3.2x; the passes in its int32
+    state 47.7, in int64 87.8); causal 20.1 -> 8.8, 24.4 -> 8.9, 74.4 -> 30.5;
+    ``line_params()`` 95.7 -> 53.7, 102.6 -> 54.8, 262.4 -> 142.0 (its kernel
+    also skips the neighbours whose latest event is supported already). On a
+    DVS128 the int32 state costs 7 % more (19.1 against 17.8), hence the size
+    rule; of the 17.9 on the 10 M file the forward pass with the checks is ~9.4
+    (the previous path's ``check_events`` alone 6.7).
     ``benchmarks/bench_cli.py`` (load 4.3): "buffer alone (filter_events,
     checks included)" 17 ns/event on the 10 M file (least of 3; the first 18),
     18 on ``stripes.mat`` (issue 12 item 4's target <= 40; it was 40-43 / 32-35
     at load ~1.2).
+
+Streaming (:class:`EventBuffer`)
+    Keeps the chain kernel (an unsupported event's later neighbours are not
+    known yet), reading the fields of its record buffer in place and copying
+    records as raw bytes (numpy copies the packed records field by field,
+    ~13 ns per event, against ~0.4): fed ``stripes.mat`` x 10 in chunks of
+    100 k / 10 k events, 85.7 -> 50.7 and 72.4 -> 50.5 ns per event (thread
+    CPU, least of 5, the class before, taken from git, and after in one run;
+    load 3.1); ``benchmarks/bench_buffer.py`` prints today's (above: 58.5 /
+    54.5 on the 10 M file).
 
 Line rule (``line_window_us``, a departure from the paper, off by default; :func:`line_params`)
     The 10 ms window removes slow oblique edges: at 10 px/s and 20 degrees the
