@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 NEVER = np.iinfo(np.int64).min
+FOREVER = np.iinfo(np.int64).max  # the backward pass's "never fires"
 
 
 @njit(cache=True)
@@ -139,6 +140,148 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, heigh
         state[c] = tk
 
 
+# ---------------------------------------------------------------- one shot: two passes, no chains
+#
+# With the whole stream at hand the buffered rule splits in two: event ``k`` is
+# supported when the *latest* same-polarity event before it (stream order) at one of
+# its 8 neighbours is at most ``tau`` earlier (a forward pass, the causal rule), or
+# the *earliest* one after it is at most ``tau`` later (the same pass backwards): the
+# latest before and the earliest after are the nearest in time on each side (the
+# stream is time-sorted), so this is ``|t_j - t_k| <= tau`` for some neighbour event
+# ``j``, the rule :func:`_buffer_scan` implements with its walks. State: one time per
+# pixel and polarity, ``(2, height + 2, width + 2)`` with a border that never fires;
+# no chain, no per-event array but the mask. The time is ``t - t0``: int64 with
+# ``t0 = 0`` (exact everywhere for the forward pass), or int32 with ``t0 = t[0]``
+# when the span and the window fit (:func:`narrow_exact`; half the memory, which
+# counts on large sensors).
+
+I32_MIN = np.iinfo(np.int32).min  # the narrow state's "never fired" (forward pass)
+I32_MAX = np.iinfo(np.int32).max  # and "never fires" (backward pass)
+
+
+@njit(cache=True)
+def _support_before(x, y, t, p, supported, state, t0, width, height, tau_us):
+    """Set ``supported[k]``: a neighbour's latest event before ``k`` (stream order) is at most ``tau_us`` earlier.
+
+    ``state``: :func:`_two_passes`' array, filled with its "never fired" (the dtype's
+    minimum), holding ``t - t0``. With int64 and ``t0 = 0`` the causal rule exactly as
+    :func:`_buffer_scan` decides it (``last_t >= lo``, the same treatment of a window
+    starting at the int64 floor). Checks the events on the way (the input checks of
+    :func:`evedge.events.validate_events`, in the same pass): returns -1, or the
+    index of the first event outside the sensor or earlier than the one before it,
+    where it stops (the mask is then incomplete).
+    """
+    row = width + 2
+    plane = (height + 2) * row
+    n = x.shape[0]
+    t_prev = t[0] if n else 0
+    for k in range(n):
+        xk = x[k]
+        yk = y[k]
+        tk = t[k]
+        if xk < 0 or xk >= width or yk < 0 or yk >= height or tk < t_prev:
+            return k
+        t_prev = tk
+        rel = tk - t0
+        lo = rel - tau_us
+        lo_n = lo + (lo == NEVER)  # a window starting at the floor does not count "never fired"
+        c = p[k] * plane + (yk + 1) * row + (xk + 1)
+        supported[k] = ((state[c - row - 1] >= lo_n) | (state[c - row] >= lo_n) | (state[c - row + 1] >= lo_n)
+                        | (state[c - 1] >= lo_n) | (state[c + 1] >= lo_n)
+                        | (state[c + row - 1] >= lo_n) | (state[c + row] >= lo_n) | (state[c + row + 1] >= lo_n))
+        state[c] = rel
+    return -1
+
+
+@njit(cache=True)
+def _support_after(x, y, t, p, supported, state, t0, width, height, tau_us):
+    """Or into ``supported[k]``: a neighbour's earliest event after ``k`` (stream order) is at most ``tau_us`` later.
+
+    After :func:`_support_before` on the same (checked) events, this gives the
+    buffered rule; ``state`` filled with its "never fires" (the dtype's maximum).
+    Exact when no event lies within ``tau_us`` of the int64 range's ends (no
+    wrap-around, and the sentinel is later than every window): :func:`one_shot_exact`.
+    """
+    row = width + 2
+    plane = (height + 2) * row
+    for k in range(x.shape[0] - 1, -1, -1):
+        rel = t[k] - t0
+        hi = rel + tau_us
+        c = p[k] * plane + (y[k] + 1) * row + (x[k] + 1)
+        supported[k] |= ((state[c - row - 1] <= hi) | (state[c - row] <= hi) | (state[c - row + 1] <= hi)
+                         | (state[c - 1] <= hi) | (state[c + 1] <= hi)
+                         | (state[c + row - 1] <= hi) | (state[c + row] <= hi) | (state[c + row + 1] <= hi))
+        state[c] = rel
+
+
+@njit(cache=True)
+def _passes(x, y, t, p, supported, state, forever, t0, width, height, tau_us, forward_only):
+    bad = _support_before(x, y, t, p, supported, state, t0, width, height, tau_us)
+    if bad >= 0 or forward_only:
+        return bad
+    state[:] = forever
+    _support_after(x, y, t, p, supported, state, t0, width, height, tau_us)
+    return -1
+
+
+@njit(cache=True)
+def _two_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narrow):
+    """The one-shot buffer: :func:`_support_before`, then (unless ``forward_only``) :func:`_support_after`.
+
+    ``narrow``: int32 state, times relative to ``t[0]`` (only when :func:`narrow_exact`);
+    else int64, absolute. Returns :func:`_support_before`'s result (-1: events fine).
+    """
+    size = 2 * (height + 2) * (width + 2)
+    if narrow:
+        t0 = t[0] if t.shape[0] else 0
+        return _passes(x, y, t, p, supported, np.full(size, I32_MIN, np.int32), I32_MAX, t0, width, height, tau_us,
+                       forward_only)
+    return _passes(x, y, t, p, supported, np.full(size, NEVER, np.int64), FOREVER, 0, width, height, tau_us,
+                   forward_only)
+
+
+def run_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narrow):
+    """:func:`_two_passes` from Python, with the state made in numpy: only the state type used is compiled.
+
+    (:func:`_two_passes` compiles both, a second or more on a cold start; the strips call it.)
+    """
+    size = 2 * (height + 2) * (width + 2)
+    if narrow:
+        state, forever, t0 = np.full(size, I32_MIN, np.int32), int(I32_MAX), int(t[0]) if t.shape[0] else 0
+    else:
+        state, forever, t0 = np.full(size, NEVER, np.int64), int(FOREVER), 0
+    return _passes(x, y, t, p, supported, state, forever, t0, width, height, tau_us, forward_only)
+
+
+def one_shot_exact(t_first: int, t_last: int, tau_us: int) -> bool:
+    """Whether :func:`_support_after` is exact for a stream from ``t_first`` to ``t_last`` (int64 state).
+
+    No event within ``tau_us`` of the int64 range's ends: ``t_first - tau_us > min``
+    and ``t_last + tau_us < max``. Else the one-shot buffer takes :func:`_buffer_scan`.
+    """
+    return int(t_first) - int(NEVER) > tau_us and int(FOREVER) - int(t_last) > tau_us
+
+
+def narrow_exact(t_first: int, t_last: int, tau_us: int) -> bool:
+    """Whether both passes give the same bytes with the int32 state (times relative to ``t_first``).
+
+    :func:`one_shot_exact` (so the int64 passes do not wrap around either), and
+    ``t_last - t_first + tau_us < 2**31 - 1``: every relative time and window bound
+    (``>= -tau_us``, ``<= span + tau_us``) fits strictly between the sentinels.
+    """
+    return one_shot_exact(t_first, t_last, tau_us) and int(t_last) - int(t_first) + tau_us < int(I32_MAX)
+
+
+#: The int32 state pays when the int64 one would not fit a core's L2 cache (512 KiB here): on a
+#: Gen4-sized sensor 1.7x faster, on a DVS128 (270 KiB in int64) 7 % slower (``benchmarks/bench_buffer.py``).
+NARROW_FROM_BYTES = 2**19
+
+
+def narrow_state(t_first: int, t_last: int, tau_us: int, width: int, height: int) -> bool:
+    """Whether the one-shot passes take the int32 state: exact (:func:`narrow_exact`) and large enough to pay."""
+    return 16 * (width + 2) * (height + 2) > NARROW_FROM_BYTES and narrow_exact(t_first, t_last, tau_us)
+
+
 @njit(cache=True)
 def _n_decided(t, supported, t_latest, tau_us, causal):
     """Length of the leading run of events whose fate is known by time ``t_latest``."""
@@ -159,7 +302,9 @@ def _n_decided(t, supported, t_latest, tau_us, causal):
 # Its own per-pixel state, flat int64 laid out as ``(2, height + 4, width + 4, 3)``
 # (:func:`new_line_state`): a border of two pixels that never fire, so the rule's
 # reads two pixels out need no bounds checks. ``[..., 0]`` is the pixel's latest
-# timestamp (:data:`NEVER`: none), ``[..., 1]`` the global index of that event,
+# timestamp (:data:`NEVER`: none), ``[..., 1]`` the global index of that event
+# (-1: none, or it needs no mark: supported when it came or marked since; marking is
+# idempotent, so skipping those changes no decision),
 # ``[..., 2]`` the timestamp of the pixel's event before it (:data:`NEVER`: none).
 
 LINE_FIELDS = 3
@@ -235,11 +380,14 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
                     continue
                 step = dy * row + LINE_FIELDS * dx
                 c = u + step
+                gc = state[c + 1]
+                if gc < base_g:  # no event to mark there (most often: supported when it came, or marked since)
+                    continue
                 tc = state[c]
                 if tc < lo_n:
                     continue
-                gc = state[c + 1]
-                if gc < base_g or supported[gc - base_g]:
+                if supported[gc - base_g]:  # supported since (streaming: a later chunk's walk)
+                    state[c + 1] = -1
                     continue
                 te = state[c + step]
                 if not _midway(te, tc, tk, line_us, line_tol):
@@ -261,6 +409,7 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
                     if not found:
                         continue
                 supported[gc - base_g] = True
+                state[c + 1] = -1
         state[u + 2] = state[u]
         state[u] = tk
-        state[u + 1] = base_g + k
+        state[u + 1] = -1 if supported[k] else base_g + k

@@ -67,7 +67,8 @@ from numba import njit, prange
 
 from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
 from ._checks import NEVER_US
-from ._buffer_kernels import _buffer_scan, _line_scan, new_line_state, new_state
+from ._buffer_kernels import (_buffer_scan, _line_scan, _two_passes, narrow_state, new_line_state, new_state,
+                              one_shot_exact)
 from ._edges_kernels import _DX, _DY, _edge_update
 from ._intra_kernels import _intra_stream, _scratch
 from ._noise_kernels import _AGREE, _BURST_SPAN
@@ -127,15 +128,18 @@ def _strip_events(x, y, t, p, sel, row0):
 
 
 @njit(parallel=True, cache=True)
-def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_us, causal, supported, line_us=0,
-                  line_tol=0.5, line_quiet=2.0, line_count=1):
+def _buffer_tiles(x, y, t, p, idx, starts, lo, rows, own_lo, own_hi, width, tau_us, causal, exact, narrow,
+                  supported, line_us=0, line_tol=0.5, line_quiet=2.0, line_count=1):
     for s in prange(lo.shape[0]):
         sel = idx[starts[s]:starts[s + 1]]
         n = sel.shape[0]
         xs, ys, ts, ps = _strip_events(x, y, t, p, sel, lo[s])
         sup = np.empty(n, np.bool_)
-        _buffer_scan(xs, ys, ts, ps, np.empty(n, np.int64), sup, 0, 0, new_state(width, rows[s]), width, rows[s],
-                     tau_us, causal)
+        # the serial one-shot kernels (:func:`evedge.detector.buffer.filter_events`)
+        _two_passes(xs, ys, ts, ps, sup, width, rows[s], tau_us, causal or not exact, narrow)
+        if not (causal or exact):
+            _buffer_scan(xs, ys, ts, ps, np.empty(n, np.int64), sup, 0, 0, new_state(width, rows[s]), width, rows[s],
+                         tau_us, False)
         if line_us > 0:  # the line rule reads only pixels within one of the event it supports: the halo suffices
             _line_scan(xs, ys, ts, ps, sup, 0, 0, new_line_state(width, rows[s]), width, rows[s], line_us, line_tol,
                        line_quiet, line_count)
@@ -156,8 +160,10 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
     hi = np.minimum(own[:, 1] + 1, height)
     idx, starts = _strip_index(y, lo, hi)
     supported = np.zeros(x.shape[0], bool)
+    exact = x.shape[0] > 0 and one_shot_exact(t[0], t[-1], tau_us)
+    narrow = x.shape[0] > 0 and narrow_state(t[0], t[-1], tau_us, width, height)
     _buffer_tiles(x, y, t, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width, tau_us, causal,
-                  supported, line_us, line_tol, line_quiet, line_count)
+                  exact, narrow, supported, line_us, line_tol, line_quiet, line_count)
     return supported
 
 

@@ -20,6 +20,52 @@ Equal timestamps: two events with the same timestamp at neighbouring pixels
 support each other in the buffered form; in the causal form only the one later
 in the stream is supported by the other (stream order decides).
 
+One shot (:func:`filter_events`): two passes instead of walks
+    With the whole stream at hand, the buffered rule needs no chains: an event
+    is supported when the latest same-polarity event before it (stream order)
+    at one of its neighbours is at most ``tau_min_us`` earlier (a forward pass,
+    the causal rule), or the earliest one after it at most ``tau_min_us`` later
+    (the same pass backwards): those two are the nearest in time on each side,
+    the stream being time-sorted. The streaming kernel (:class:`EventBuffer`)
+    walks each neighbour's chain of waiting events instead, with an int64 link
+    per event and 16 bytes of state per pixel; the passes keep one time per
+    pixel and no per-event array but the mask, and the forward pass checks the
+    events (range, order: :func:`evedge.events.validate_events`' checks) on its
+    way, so the events are read twice, not four times. The time is int64, or
+    int32 relative to the first event where that is exact (span + window <
+    2**31 us, 36 min) and the int64 state would not fit a core's L2 cache
+    (512 KiB: larger than a DVS128's; ``_buffer_kernels.narrow_state``; only
+    the state type used is compiled: ~1.3 s CPU on a cold start, the chain
+    kernel's ~1.5). Same bytes as the chain kernel, serial and on strips, either
+    state (``tests/detector/test_buffer_one_shot.py``); a stream within
+    ``tau_min_us`` of the int64 range's ends (where the chain kernel's window
+    wraps around) takes the chain kernel. Measured (``benchmarks/bench_buffer.py
+    --gen4``, 2026-12-03, load 3.4 -> 4.8 on the 2 CPUs, thread CPU, least of
+    5; the load inflates both, compare the ratios), previous -> today, ns per
+    event: paper defaults 44.1 -> 18.1 on ``stripes.mat`` (2.4x), 50.1 -> 17.9
+    on it repeated 30 times (10.2 M events, 2.8x), 156.2 -> 48.7 on the
+    Gen4-sized input (1280x720, 1.6 M events, 3.2x; the passes in its int32
+    state 47.7, in int64 87.8); causal 20.1 -> 8.8, 24.4 -> 8.9, 74.4 -> 30.5;
+    ``line_params()`` 95.7 -> 53.7, 102.6 -> 54.8, 262.4 -> 142.0 (its kernel
+    also skips the neighbours whose latest event is supported already). On a
+    DVS128 the int32 state costs 7 % more (19.1 against 17.8), hence the size
+    rule; of the 17.9 on the 10 M file the forward pass with the checks is ~9.4
+    (the previous path's ``check_events`` alone 6.7).
+    ``benchmarks/bench_cli.py`` (load 4.3): "buffer alone (filter_events,
+    checks included)" 17 ns/event on the 10 M file (least of 3; the first 18),
+    18 on ``stripes.mat`` (issue 12 item 4's target <= 40; it was 40-43 / 32-35
+    at load ~1.2).
+
+Streaming (:class:`EventBuffer`)
+    Keeps the chain kernel (an unsupported event's later neighbours are not
+    known yet), reading the fields of its record buffer in place and copying
+    records as raw bytes (numpy copies the packed records field by field,
+    ~13 ns per event, against ~0.4): fed ``stripes.mat`` x 10 in chunks of
+    100 k / 10 k events, 85.7 -> 50.7 and 72.4 -> 50.5 ns per event (thread
+    CPU, least of 5, the class before, taken from git, and after in one run;
+    load 3.1); ``benchmarks/bench_buffer.py`` prints today's (above: 58.5 /
+    54.5 on the 10 M file).
+
 Line rule (``line_window_us``, a departure from the paper, off by default; :func:`line_params`)
     The 10 ms window removes slow oblique edges: at 10 px/s and 20 degrees the
     nearest neighbour along the edge fires 34 ms away (0.34 lifetimes; 0.45 at
@@ -38,10 +84,12 @@ Line rule (``line_window_us``, a departure from the paper, off by default; :func
     --quick``, ``noise_params()``, README "Robustness"): one pair, 100 ms:
     noise kept by the buffer 37.3 -> 41.8 %, noise given a lifetime 6.2 ->
     7.0 %; two pairs (the preset: 150 ms, tolerance 0.7): 38.9 % and 6.7 %,
-    slow oblique signal kept 66 -> 79 % (median of those cells). Cost: a second
-    pass with its own state, 1.6-1.7x the default buffer's CPU per event on
-    ``stripes.mat`` (``benchmarks/bench_buffer_rules.py``); the default path
-    is unchanged.
+    slow oblique signal kept 66 -> 79 % (median of those cells). Cost: a further
+    pass with its own state (the default path is unchanged), on
+    ``benchmarks/bench_buffer_rules.py`` (2026-12-03, load 3.6, after the two
+    passes above made the default path ~3x cheaper): ``stripes.mat`` 18.0 ->
+    52.0 ns/event (2.9x the default's), the slow oblique noisy cell 16.2 ->
+    101.6 (6.3x; many unsupported events there, each a candidate).
 
 References
 ----------
@@ -57,7 +105,8 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import _buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state
+from ._buffer_kernels import (_buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state, narrow_state,
+                              one_shot_exact, run_passes)
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from evedge._validate import check_real
@@ -65,6 +114,9 @@ from evedge._validate import check_real
 from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
+#: An event as 13 raw bytes: numpy copies records of the packed EVENT_DTYPE field by field
+#: (~13 ns per event), the same bytes as np.void at memcpy speed (~0.4).
+_RECORD = np.dtype((np.void, EVENT_DTYPE.itemsize))
 
 
 @dataclass(frozen=True)
@@ -181,12 +233,11 @@ class EventBuffer:
         w, h = self.sensor_size.width, self.sensor_size.height
         self._state = empty_state(w, h)  # per pixel and polarity, padded border (see _buffer_kernels)
         self._line_state = empty_line_state(w, h) if self.params.line_window_us else None
-        # the unreleased events are slots [_start, _end) of growable arrays (the events
-        # and their plain columns, converted once on arrival): a chunk costs O(chunk),
-        # not O(events waiting), however long the support window keeps them
+        # the unreleased events are slots [_start, _end) of growable arrays (the events, the
+        # kernel reading their fields in place): a chunk costs O(chunk), not O(events
+        # waiting), however long the support window keeps them
         self._cap = 0
         self._ev = np.empty(0, dtype=EVENT_DTYPE)
-        self._cols = [np.empty(0, dtype=np.int64) for _ in range(4)]  # x, y, t, p
         self._prev = np.empty(0, dtype=np.int64)
         self._supported = np.empty(0, dtype=bool)
         self._start = 0
@@ -208,13 +259,12 @@ class EventBuffer:
         while pending + m > cap // 2:  # at least half free after the move: amortised O(1) per event
             cap *= 2
         sl = slice(self._start, self._end)
-        arrays = [self._ev, *self._cols, self._prev, self._supported]
         new = []
-        for arr in arrays:
+        for arr in (self._ev.view(_RECORD), self._prev, self._supported):
             out = np.empty(cap, dtype=arr.dtype)
             out[:pending] = arr[sl]
             new.append(out)
-        self._ev, self._cols, self._prev, self._supported = new[0], new[1:5], new[5], new[6]
+        self._ev, self._prev, self._supported = new[0].view(EVENT_DTYPE), new[1], new[2]
         self._cap, self._start, self._end = cap, 0, pending
 
     def process(self, events: np.ndarray) -> np.ndarray:
@@ -226,12 +276,12 @@ class EventBuffer:
         m = events.shape[0]
         self._make_room(m)
         a, b = self._end, self._end + m
-        self._ev[a:b] = events
-        for col, field in zip(self._cols, "xytp"):
-            col[a:b] = events[field]  # converted to int64 in place (no temporary column)
+        self._ev[a:b].view(_RECORD)[:] = events.view(_RECORD)
         self._end = b  # prev and supported of the new slots are set by the kernel
         sl = slice(self._start, b)
-        x, y, t, p = (col[sl] for col in self._cols)
+        # the fields in place (strided views; int64 copies of them cost ~1/3 of a chunk's time)
+        ev = self._ev[sl]
+        x, y, t, p = ev["x"], ev["y"], ev["t"], ev["p"]
         tau = self.params.tau_min_us
         causal = self.params.mode == "causal"
         _buffer_scan(x, y, t, p, self._prev[sl], self._supported[sl], a - self._start, self._base_g, self._state,
@@ -256,7 +306,7 @@ class EventBuffer:
             raise ValueError(f"t_us={t_us} is before the newest processed event (t={self._last_time} us)")
         self._last_time = int(t_us)
         sl = slice(self._start, self._end)
-        r = _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.hold_us,
+        r = _n_decided(self._ev["t"][sl], self._supported[sl], self._last_time, self.params.hold_us,
                        self.params.mode == "causal")
         return self._release(r)
 
@@ -293,24 +343,47 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     """
     sensor_size = check_sensor_size(sensor_size)
     params = _check_params(params)
-    events = check_events(events, sensor_size)
-    return _filter(events, sensor_size, params, check_n_tiles(n_tiles, sensor_size.height))
+    plain = isinstance(events, np.ndarray) and events.dtype == EVENT_DTYPE and events.ndim == 1
+    if not plain:  # converted and checked here; plain events are checked by the serial kernel on its way
+        events = check_events(events, sensor_size)
+    try:
+        n_tiles = check_n_tiles(n_tiles, sensor_size.height)
+    except (TypeError, ValueError):
+        check_events(events, sensor_size)  # the events' error first, as their checks come first
+        raise
+    if n_tiles > 1 and plain:
+        events = check_events(events, sensor_size)
+    return _filter(events, sensor_size, params, n_tiles)
 
 
 def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int) -> np.ndarray:
-    """:func:`filter_events` on validated events and parameters."""
+    """:func:`filter_events` on checked parameters and events of :data:`EVENT_DTYPE`.
+
+    Serially (``n_tiles == 1``) the events need not be checked: the first pass checks
+    them (range and order, in the same pass) and, on a bad event, :func:`check_events`
+    raises its error.
+    """
     w, h = sensor_size.width, sensor_size.height
     n = events.shape[0]
+    causal = params.mode == "causal"
     if n_tiles > 1:
         x, y, t, p = columns(events)
-        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, params.mode == "causal", n_tiles,
+        return filter_tiled(x, y, t, p, w, h, params.tau_min_us, causal, n_tiles,
                             params.line_window_us, params.line_tolerance, params.line_quiet, params.line_count)
-    # one pass: the kernel reads the event fields in place (strided views, no int64 copies: on a
-    # 10 M-event file the copies cost as much as the scan, most of it first touches of fresh memory)
+    supported = np.empty(n, dtype=bool)
+    if n == 0:
+        return supported
+    # the kernels read the event fields in place (strided views: no int64 copies, which on a
+    # 10 M-event file cost as much as a pass, most of it first touches of fresh memory)
     x, y, t, p = events["x"], events["y"], events["t"], events["p"]
-    supported = np.empty(n, dtype=bool)  # every entry set by the kernel, as is prev
-    _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h,
-                 params.tau_min_us, params.mode == "causal")
+    tau = params.tau_min_us
+    exact = one_shot_exact(t[0], t[-1], tau)  # (t[-1] may not be the last time yet: then the checks fail)
+    bad = run_passes(x, y, t, p, supported, w, h, tau, causal or not exact, narrow_state(t[0], t[-1], tau, w, h))
+    if bad >= 0:
+        check_events(events, sensor_size)  # raises, naming the first bad event
+        raise RuntimeError(f"events: event {bad} failed the buffer's checks but passed check_events (a bug)")
+    if not (causal or exact):  # times within tau of the int64 range's ends: the chain kernel
+        _buffer_scan(x, y, t, p, np.empty(n, dtype=np.int64), supported, 0, 0, empty_state(w, h), w, h, tau, False)
     if params.line_window_us:
         _line_scan(x, y, t, p, supported, 0, 0, empty_line_state(w, h), w, h, params.line_window_us,
                    params.line_tolerance, params.line_quiet, params.line_count)
