@@ -53,7 +53,8 @@ event (window gather ~0.07, 2-means ~0.05-0.10, compaction, one trial, refit);
 each further trial ~0.025 us, and stripes.mat runs ~10.2 trials per event
 (shapes ~3.8) under the adaptive rule at stop_probability 0.999, so the trial
 count, not the code, is what is left to gain on one core. The event buffer costs
-~0.03 us per event (28-30 ns at load ~3, after its kernel's rewrite; was ~0.05),
+~0.03 us per event (28-30 ns at load ~3, after its kernel's rewrite; was ~0.05; ~18 ns since its
+one-shot two passes, 2026-12-03, ``bench_buffer.py``),
 ``detect``'s own bookkeeping (checks, boolean indexing) ~0.03 us.
 
 Profile of the estimator by stages (2026-12-01, engineer i12: copies of the
@@ -357,10 +358,11 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
           + "; ".join(f"{k} strips {v[0]:.2f}x (workers busy {v[1]:.2f}, deferred {v[2]:.2f})"
                       for k, v in sims.items())
           + f"; / the extra CPU ({overhead:.3f}x) -> estimator on {tiles} idle cores {sims[tiles][0] / overhead:.2f}x")
-    # detect + edges = serial bookkeeping + buffer strips + estimator strips + edge strips
+    # detect + edges = serial bookkeeping + the serial buffer (detect runs it serially: its one-shot passes
+    # cost less than its strips) + estimator strips + edge strips
     per_strip = [np.count_nonzero((events["y"] >= a) & (events["y"] < b))
                  for a, b in balanced_strips(events["y"], size.height, tiles)]
-    buf_speedup = events.size / max(per_strip) if tiles <= threads else threads
+    edge_speedup = events.size / max(per_strip) if tiles <= threads else threads
     edge_s = edge_s_per_event * n
     est1 = min(ser)
     # detect's and the edge frames' own bookkeeping, timed directly (the difference of totals is the load's noise):
@@ -389,23 +391,23 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     edge_extra = float(np.median(e_ratio))
     print(f"  edge frames on {tiles} strips: thread CPU {edge_extra:.2f}x the serial frames (all strips on one "
           f"thread, median of {len(e_ratio)} pairs: each strip gathers its events' 8 columns and has its own state)")
-    expect = cpu1 / (rest + buffer_s / buf_speedup + est1 * overhead / sims[tiles][0]
-                     + edge_s * edge_extra / buf_speedup)
+    expect = cpu1 / (rest + buffer_s + est1 * overhead / sims[tiles][0] + edge_s * edge_extra / edge_speedup)
     print(f"  detect + edge frames on {tiles} idle cores, EXPECTED (Amdahl) {expect:.2f}x (serial bookkeeping "
-          f"{rest * 1e3:.1f} ms, buffer {buffer_s * 1e3:.1f} ms at {buf_speedup:.2f}x, edge frames "
-          f"{edge_s * 1e3:.1f} ms at {buf_speedup:.2f}x / {edge_extra:.2f}, estimator {est1 * 1e3:.1f} ms at "
+          f"{rest * 1e3:.1f} ms, buffer {buffer_s * 1e3:.1f} ms serial, edge frames "
+          f"{edge_s * 1e3:.1f} ms at {edge_speedup:.2f}x / {edge_extra:.2f}, estimator {est1 * 1e3:.1f} ms at "
           f"{sims[tiles][0]:.2f}x / {overhead:.3f}; target >= 1.8)")
     eff8 = sims[8][0] / 8 / overhead
-    par = 1 / full_rate - rest / n  # s per event of the stages on strips
-    serial_share = 20e6 * rest / n  # cores' worth of the serial bookkeeping at Gen4's rate
+    serial_s = (rest + buffer_s) / n  # s per event of what detect runs serially: bookkeeping and the buffer
+    par = 1 / full_rate - serial_s  # s per event of the stages on strips
+    serial_share = 20e6 * serial_s  # cores' worth of the serial part at Gen4's rate
     with_serial = (f"{20e6 * par / eff8 / (1 - serial_share):.1f}" if serial_share < 1
-                   else "never (the serial bookkeeping alone exceeds one core)")
+                   else "never (the serial part alone exceeds one core)")
     print(f"GEN4 PROJECTION (1280x720, 20 M events/s) from this run's per-core cost ({1e9 / full_rate:.0f} ns/event: "
           f"edge image {edge_s_per_event * 1e9:.0f}, bookkeeping {rest / n * 1e9:.0f}): {20e6 / full_rate:.1f} cores "
           f"with no parallel loss; {20e6 / full_rate / eff8:.1f} cores at the strips' 8-strip efficiency "
           f"(simulated 8-strip speedup / 8 / extra CPU = {eff8:.2f}), every stage spread over the cores; "
-          f"{with_serial} with detect's bookkeeping (checks, compress, expand: {serial_share:.2f} core at 20 M ev/s) "
-          f"left on one core (target <= 8)")
+          f"{with_serial} with detect's serial part (checks, compress, expand and the buffer: {serial_share:.2f} core "
+          f"at 20 M ev/s) left on one core (target <= 8)")
 
 
 def main(argv=None):
