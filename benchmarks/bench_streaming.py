@@ -37,12 +37,14 @@ the load average is printed with the figures, CPU latencies are the robust
 ones, wall latencies include preemption by other jobs.
 
 Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000] [--passes 3]
-[--target-ns 286]``.
+[--target-ns 286] [--intra burst_reuse=true ...]`` (``--intra``: IntraParams fields, as in
+``robustness_grid.py``).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -52,8 +54,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_detector import load_stripes  # noqa: E402
+from robustness_grid import _parse_intra  # noqa: E402
 
-from evedge.detector import Detector, EdgeImage, detect  # noqa: E402
+from evedge.detector import Detector, EdgeImage, IntraParams, detect  # noqa: E402
 from evedge.events import EVENT_DTYPE, SensorSize  # noqa: E402
 
 WARMUP_CHUNKS = 50
@@ -83,14 +86,14 @@ def compressed(events: np.ndarray, factor: float) -> np.ndarray:
     return fast
 
 
-def stream(events: np.ndarray, size: SensorSize, chunk_us: int):
+def stream(events: np.ndarray, size: SensorSize, chunk_us: int, params=None):
     """Per-chunk latencies (wall, CPU) in seconds and the event counts, after the warm-up; total CPU.
 
     Each chunk is one call, ``Detector.process(chunk, until_us=chunk end)`` (the
     filter releases what it has decided by the chunk's end: ``process`` then
     ``advance_to`` in one pass through the estimator and the edge image).
     """
-    det = Detector(size)
+    det = Detector(size, params=params)
     t = events["t"]
     t0 = int(t[0])
     edges = np.arange(t0, int(t[-1]) + chunk_us, chunk_us)
@@ -110,23 +113,23 @@ def stream(events: np.ndarray, size: SensorSize, chunk_us: int):
     return np.array(wall), np.array(cpu), np.array(counts), time.thread_time() - c_all
 
 
-def one_shot_cpu(events: np.ndarray, size: SensorSize) -> float:
+def one_shot_cpu(events: np.ndarray, size: SensorSize, params=None) -> float:
     """CPU seconds of the same work in one call per stage: buffer + estimator (``detect``) + the edge image."""
     c0 = time.thread_time()
-    res = detect(events, size)
+    res = detect(events, size, params=params)
     image = EdgeImage(size)
     image.process(events[res.kept], res.lifetimes[res.kept])
     return time.thread_time() - c0
 
 
-def fixed_cost(events: np.ndarray, size: SensorSize, n: int = 3000) -> float:
+def fixed_cost(events: np.ndarray, size: SensorSize, n: int = 3000, params=None) -> float:
     """Median CPU seconds of one ``Detector.process`` call on a one-event chunk (the per-chunk fixed cost).
 
     The events of the stream one by one (after 500 of warm-up), each with
     ``until_us`` just after it: the checks, allocations and one call per stage
     that every chunk pays, plus one event's work.
     """
-    det = Detector(size)
+    det = Detector(size, params=params)
     cpu = []
     for i in range(min(n + 500, events.size)):
         t = int(events["t"][i])
@@ -138,7 +141,7 @@ def fixed_cost(events: np.ndarray, size: SensorSize, n: int = 3000) -> float:
     return float(np.median(cpu))
 
 
-def report(label, events, size, chunk_us, passes, target_ns):
+def report(label, events, size, chunk_us, passes, target_ns, params=None):
     """One line: latencies, sustained rate, keeping up, streamed / one-shot, per-chunk cost model, projection.
 
     ``passes`` streamed passes alternate with as many one-shot runs (same process,
@@ -156,8 +159,8 @@ def report(label, events, size, chunk_us, passes, target_ns):
     load = os.getloadavg()[0]
     runs, whole = [], []
     for _ in range(passes):
-        runs.append(stream(events, size, chunk_us))
-        whole.append(one_shot_cpu(events, size))
+        runs.append(stream(events, size, chunk_us, params))
+        whole.append(one_shot_cpu(events, size, params))
     wall, cpu, counts, _ = runs[0]
     cpu_min = np.min([r[1] for r in runs], axis=0)
     ratio = np.median([r[3] for r in runs]) / np.median(whole)
@@ -165,7 +168,7 @@ def report(label, events, size, chunk_us, passes, target_ns):
     chunk_s = chunk_us * 1e-6
     keeps = n / wall.sum() >= rate and np.quantile(wall, 0.99) < chunk_s
     keeps_cpu = n / cpu_min.sum() >= rate and np.quantile(cpu_min, 0.99) < chunk_s
-    a = fixed_cost(events, size)
+    a = fixed_cost(events, size, params=params)
     per_event = (cpu_min.sum() - a * cpu_min.size) / n
     proj = np.quantile(a + (cpu_min - a) * (target_ns * 1e-9 / per_event), 0.99)
     print(f"{label:34s} {size.width}x{size.height} {rate / 1e6:5.2f} M ev/s in, {counts.mean():5.0f} ev/chunk "
@@ -187,14 +190,19 @@ def main(argv=None):
     ap.add_argument("--passes", type=int, default=3, help="streamed passes (and one-shot runs), alternated")
     ap.add_argument("--target-ns", type=float, default=1e9 / 3.5e6,
                     help="per-event cost of the projection (default: issue 12's 3.5 M events/s per core)")
+    ap.add_argument("--intra", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="IntraParams fields of the estimator, e.g. burst_reuse=true (default: the defaults)")
     args = ap.parse_args(argv)
-    rep = dict(chunk_us=args.chunk_us, passes=args.passes, target_ns=args.target_ns)
+    params = _parse_intra(args.intra)
+    rep = dict(chunk_us=args.chunk_us, passes=args.passes, target_ns=args.target_ns, params=params)
     data = load_stripes()
     if data is None:
         return
     events, size = data
     assert events.dtype == EVENT_DTYPE
-    print(f"chunks of {args.chunk_us} us, one core, first {WARMUP_CHUNKS} chunks not counted")
+    changed = {k: v for k, v in dataclasses.asdict(params).items() if v != getattr(IntraParams(), k)}
+    print(f"chunks of {args.chunk_us} us, one core, first {WARMUP_CHUNKS} chunks not counted, "
+          f"intra params: {changed or 'defaults'}")
     report("stripes.mat as recorded", events, size, **rep)
     span_s = (int(events["t"][-1]) - int(events["t"][0])) / 1e6
     factor = 2e6 / (events.size / span_s)  # the issue's target rate: 2 M events/s on one core
