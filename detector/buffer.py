@@ -223,6 +223,11 @@ class EventBuffer:
         check_not_before(events, self._last_time)
         if events.size == 0:
             return events[:0].copy()
+        self._scan(events)
+        return self._release(self._n_ready())
+
+    def _scan(self, events: np.ndarray) -> None:
+        """Append a checked, non-empty chunk (not before the newest event) and run the rules on it."""
         m = events.shape[0]
         self._make_room(m)
         a, b = self._end, self._end + m
@@ -241,7 +246,36 @@ class EventBuffer:
                        self.sensor_size.width, self.sensor_size.height, self.params.line_window_us,
                        self.params.line_tolerance, self.params.line_quiet, self.params.line_count)
         self._last_time = int(t[-1])
-        return self._release(_n_decided(t, self._supported[sl], self._last_time, self.params.hold_us, causal))
+
+    def _n_ready(self) -> int:
+        """How many of the pending slots are decided by ``_last_time`` (a leading run)."""
+        sl = slice(self._start, self._end)
+        return _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.hold_us,
+                          self.params.mode == "causal")
+
+    def _take(self, events: np.ndarray | None, until_us: int | None):
+        """:meth:`process` then :meth:`advance_to` in one release, with the released events' columns.
+
+        ``events``: a checked chunk not before the newest event (None: none);
+        ``until_us`` is checked before anything changes. Returns the released
+        events and their x, y, t, p (int64, as :func:`columns`). The same events
+        as the two calls (the decided run only grows with the time).
+        """
+        if until_us is not None:
+            newest = int(events["t"][-1]) if events is not None and events.shape[0] else self._last_time
+            self._check_until(until_us, newest)
+        if events is not None and events.shape[0]:
+            self._scan(events)
+        if until_us is not None:
+            self._last_time = int(until_us)
+        return self._release(self._n_ready() if self._last_time is not None else 0, True)
+
+    @staticmethod
+    def _check_until(t_us, newest: int | None) -> None:
+        if isinstance(t_us, bool) or not isinstance(t_us, (int, np.integer)):
+            raise TypeError(f"t_us must be an integer (microseconds), got {t_us!r}")
+        if newest is not None and t_us < newest:
+            raise ValueError(f"t_us={t_us} is before the newest processed event (t={newest} us)")
 
     def advance_to(self, t_us: int) -> np.ndarray:
         """Declare that no event earlier than ``t_us`` will come; return the kept events now decided.
@@ -250,21 +284,19 @@ class EventBuffer:
         ``t + tau_min_us``; a caller with a clock can bound the latency in wall time.
         Later chunks must not start before ``t_us``.
         """
-        if isinstance(t_us, bool) or not isinstance(t_us, (int, np.integer)):
-            raise TypeError(f"t_us must be an integer (microseconds), got {t_us!r}")
-        if self._last_time is not None and t_us < self._last_time:
-            raise ValueError(f"t_us={t_us} is before the newest processed event (t={self._last_time} us)")
+        self._check_until(t_us, self._last_time)
         self._last_time = int(t_us)
-        sl = slice(self._start, self._end)
-        r = _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.hold_us,
-                       self.params.mode == "causal")
-        return self._release(r)
+        return self._release(self._n_ready())
 
-    def _release(self, r: int) -> np.ndarray:
+    def _release(self, r: int, with_columns: bool = False):
+        """The kept events of the next ``r`` slots (and, ``with_columns``, their x, y, t, p columns)."""
         sl = slice(self._start, self._start + r)
-        out = self._ev[sl].compress(self._supported[sl])  # (faster than boolean indexing on records)
+        keep = self._supported[sl]
+        out = self._ev[sl].compress(keep)  # (faster than boolean indexing on records)
         self._start += r
         self._base_g += r
+        if with_columns:
+            return out, tuple(col[sl].compress(keep) for col in self._cols)
         return out
 
     def flush(self) -> np.ndarray:

@@ -17,10 +17,12 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._checks import check_events, check_sensor_size, validated
+from ._checks import NEVER_US, check_events, check_not_before, check_sensor_size, validated
+from ._pipeline_kernels import _chunk_ok
 from ._tiles import check_n_tiles
 from .buffer import EventBuffer
 from .edges import EdgeImage
+from .intra import IntraPixelLifetime
 from .protocols import METHODS
 from .result import LIFETIME_DTYPE, empty_lifetimes
 
@@ -323,6 +325,9 @@ class Detector:
         self._own_buffer = type(self.buffer) is EventBuffer
         self.estimator = make_method(method, self.sensor_size, params, kind="estimator")
         self.edges = EdgeImage(self.sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
+        # the built-in buffer and estimator: the released events' plain columns go from stage to stage
+        # (no check, column copy or record packing between them; the same bytes)
+        self._columns = self._own_buffer and type(self.estimator) is IntraPixelLifetime
 
     def reset(self) -> None:
         """Forget the stream."""
@@ -350,6 +355,8 @@ class Detector:
         estimator and the edge image in one call each (``process(c)`` then
         ``advance_to(t)`` gives the same events and lifetimes, in two calls each).
         """
+        if self._columns:
+            return self._run_columns(*self.buffer._take(self._check_chunk(events), until_us))
         events = check_events(events, self.sensor_size, name="chunk")
         if self.buffer is None:
             return self._run(events, checked=True)
@@ -361,8 +368,39 @@ class Detector:
                 released = np.concatenate([released, more]) if released.shape[0] else more
         return self._run(released, self._own_buffer)
 
+    def _check_chunk(self, events) -> np.ndarray:
+        """:func:`check_events` of a chunk plus the buffer's order check, in one pass when it is an event array.
+
+        Any failure (or another dtype) goes through the full checks, which convert
+        the chunk or raise naming the offending event, as :meth:`process` does.
+        """
+        last = self.buffer._last_time
+        if type(events) is np.ndarray and events.ndim == 1 and events.dtype == EVENT_DTYPE and (
+                events.shape[0] == 0 or _chunk_ok(events["x"], events["y"], events["t"], self.sensor_size.width,
+                                                  self.sensor_size.height, NEVER_US if last is None else last)):
+            return events
+        events = check_events(events, self.sensor_size, name="chunk")
+        check_not_before(events, last)
+        return events
+
+    def _run_columns(self, released: np.ndarray, cols):
+        """:meth:`_run` of the built-in stages on the released events and their columns (``EventBuffer._take``)."""
+        n = released.shape[0]
+        if n == 0:
+            return released, empty_lifetimes(0)
+        lt, vx, vy, valid = self.estimator._estimate(*cols)
+        self.edges._apply(*cols, lt, vx, vy, valid)
+        out = np.empty(n, dtype=LIFETIME_DTYPE)
+        out["lifetime_us"] = lt
+        out["vx_px_s"] = vx
+        out["vy_px_s"] = vy
+        out["valid"] = valid
+        return released, out
+
     def advance_to(self, t_us: int):
         """No event before ``t_us`` will come: release what the filter has decided; ``(events, lifetimes)``."""
+        if self._columns:
+            return self._run_columns(*self.buffer._take(None, t_us))
         if self.buffer is None or not hasattr(self.buffer, "advance_to"):
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
         return self._run(self.buffer.advance_to(t_us), self._own_buffer)
@@ -371,6 +409,8 @@ class Detector:
         """End of stream: release what the filter still holds; ``(events, lifetimes)``."""
         if self.buffer is None:
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
+        if self._columns:
+            return self._run_columns(*self.buffer._release(self.buffer.n_pending, True))
         return self._run(self.buffer.flush(), self._own_buffer)
 
     def image_at(self, t_us) -> np.ndarray:
