@@ -57,7 +57,8 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import _buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state
+from ._buffer_kernels import NEVER, _buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state
+from ._stream_kernels import _fill_slots, _release_slots
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from evedge._validate import check_real
@@ -235,6 +236,11 @@ class EventBuffer:
         for col, field in zip(self._cols, "xytp"):
             col[a:b] = events[field]  # converted to int64 in place (no temporary column)
         self._end = b  # prev and supported of the new slots are set by the kernel
+        self._scan_slots(a)
+
+    def _scan_slots(self, a: int) -> None:
+        """Run the rules on the new slots ``[a, _end)`` (filled) with the pending ones before them."""
+        b = self._end
         sl = slice(self._start, b)
         x, y, t, p = (col[sl] for col in self._cols)
         tau = self.params.tau_min_us
@@ -256,19 +262,39 @@ class EventBuffer:
     def _take(self, events: np.ndarray | None, until_us: int | None):
         """:meth:`process` then :meth:`advance_to` in one release, with the released events' columns.
 
-        ``events``: a checked chunk not before the newest event (None: none);
-        ``until_us`` is checked before anything changes. Returns the released
-        events and their x, y, t, p (int64, as :func:`columns`). The same events
-        as the two calls (the decided run only grows with the time).
+        ``events``: a chunk of :data:`~evedge.events.EVENT_DTYPE`, checked here in the
+        pass that copies it (None: none). Returns the released events and their
+        x, y, t, p (int64, as :func:`columns`), the same events as the two calls
+        (the decided run only grows with the time); or None, changing nothing,
+        when the chunk or ``until_us`` fails a check (the caller then runs the
+        full checks for their messages).
         """
-        if until_us is not None:
-            newest = int(events["t"][-1]) if events is not None and events.shape[0] else self._last_time
-            self._check_until(until_us, newest)
-        if events is not None and events.shape[0]:
-            self._scan(events)
-        if until_us is not None:
-            self._last_time = int(until_us)
-        return self._release(self._n_ready() if self._last_time is not None else 0, True)
+        has_until = until_us is not None
+        if has_until and (isinstance(until_us, bool) or not isinstance(until_us, (int, np.integer))):
+            return None
+        until = int(until_us) if has_until else 0
+        if events is None:
+            if has_until and self._last_time is not None and until < self._last_time:
+                return None
+        else:
+            m = events.shape[0]
+            self._make_room(m)
+            a = self._end
+            if not _fill_slots(events, self.sensor_size.width, self.sensor_size.height,
+                               NEVER if self._last_time is None else self._last_time, has_until, until, self._ev,
+                               *self._cols, a):
+                return None
+            if m:
+                self._end = a + m
+                self._scan_slots(a)
+        if has_until:
+            self._last_time = until
+        if self._last_time is None:
+            return self._release(0, True)
+        r = self._n_ready()
+        out, x, y, t, p = _release_slots(self._ev, *self._cols, self._supported, self._start, r)
+        self._advance(r)
+        return out, (x, y, t, p)
 
     @staticmethod
     def _check_until(t_us, newest: int | None) -> None:
@@ -293,11 +319,15 @@ class EventBuffer:
         sl = slice(self._start, self._start + r)
         keep = self._supported[sl]
         out = self._ev[sl].compress(keep)  # (faster than boolean indexing on records)
-        self._start += r
-        self._base_g += r
+        self._advance(r)
         if with_columns:
             return out, tuple(col[sl].compress(keep) for col in self._cols)
         return out
+
+    def _advance(self, r: int) -> None:
+        """The next ``r`` slots are released."""
+        self._start += r
+        self._base_g += r
 
     def flush(self) -> np.ndarray:
         """End of stream: release the kept events still waiting for support."""

@@ -17,8 +17,7 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._checks import NEVER_US, check_events, check_not_before, check_sensor_size, validated
-from ._pipeline_kernels import _chunk_ok
+from ._checks import check_events, check_not_before, check_sensor_size, validated
 from ._tiles import check_n_tiles
 from .buffer import EventBuffer
 from .edges import EdgeImage
@@ -356,7 +355,12 @@ class Detector:
         ``advance_to(t)`` gives the same events and lifetimes, in two calls each).
         """
         if self._columns:
-            return self._run_columns(*self.buffer._take(self._check_chunk(events), until_us))
+            if not (type(events) is np.ndarray and events.ndim == 1 and events.dtype == EVENT_DTYPE):
+                events = check_events(events, self.sensor_size, name="chunk")  # converted (then checked again)
+            taken = self.buffer._take(events, until_us)  # checks the chunk in the pass that copies it
+            if taken is None:
+                self._raise_check(events, until_us)
+            return self._run_columns(*taken)
         events = check_events(events, self.sensor_size, name="chunk")
         if self.buffer is None:
             return self._run(events, checked=True)
@@ -368,20 +372,13 @@ class Detector:
                 released = np.concatenate([released, more]) if released.shape[0] else more
         return self._run(released, self._own_buffer)
 
-    def _check_chunk(self, events) -> np.ndarray:
-        """:func:`check_events` of a chunk plus the buffer's order check, in one pass when it is an event array.
-
-        Any failure (or another dtype) goes through the full checks, which convert
-        the chunk or raise naming the offending event, as :meth:`process` does.
-        """
-        last = self.buffer._last_time
-        if type(events) is np.ndarray and events.ndim == 1 and events.dtype == EVENT_DTYPE and (
-                events.shape[0] == 0 or _chunk_ok(events["x"], events["y"], events["t"], self.sensor_size.width,
-                                                  self.sensor_size.height, NEVER_US if last is None else last)):
-            return events
+    def _raise_check(self, events, until_us) -> None:
+        """The full checks of :meth:`process` (in its order) of a chunk that failed the one-pass check: they raise."""
         events = check_events(events, self.sensor_size, name="chunk")
-        check_not_before(events, last)
-        return events
+        check_not_before(events, self.buffer._last_time)
+        if until_us is not None:
+            self.buffer._check_until(until_us, int(events["t"][-1]) if events.shape[0] else self.buffer._last_time)
+        raise AssertionError("the one-pass chunk check refused a chunk the full checks accept")  # pragma: no cover
 
     def _run_columns(self, released: np.ndarray, cols):
         """:meth:`_run` of the built-in stages on the released events and their columns (``EventBuffer._take``)."""
@@ -400,7 +397,11 @@ class Detector:
     def advance_to(self, t_us: int):
         """No event before ``t_us`` will come: release what the filter has decided; ``(events, lifetimes)``."""
         if self._columns:
-            return self._run_columns(*self.buffer._take(None, t_us))
+            taken = self.buffer._take(None, t_us)
+            if taken is None:
+                self.buffer._check_until(t_us, self.buffer._last_time)
+                raise AssertionError("the buffer refused an instant its check accepts")  # pragma: no cover
+            return self._run_columns(*taken)
         if self.buffer is None or not hasattr(self.buffer, "advance_to"):
             return self._run(np.empty(0, dtype=EVENT_DTYPE))
         return self._run(self.buffer.advance_to(t_us), self._own_buffer)
