@@ -41,23 +41,31 @@ def _fill_slots(events, width, height, t_last, has_until, until, ev, x, y, t, p,
 
 @njit(cache=True)
 def _release_slots(ev, x, y, t, p, supported, start, r):
-    """The supported events of slots ``[start, start + r)``: records and their x, y, t, p (new arrays)."""
+    """The supported events of slots ``[start, start + r)``: their records and a (4, m) int64 array of x, y, t, p."""
     m = 0
     for j in range(start, start + r):
         if supported[j]:
             m += 1
     out = np.empty(m, dtype=ev.dtype)
-    ox = np.empty(m, np.int64)
-    oy = np.empty(m, np.int64)
-    ot = np.empty(m, np.int64)
-    op = np.empty(m, np.int64)
+    cols = np.empty((4, m), np.int64)  # one array for the four columns (its rows): one allocation, one return
     i = 0
     for j in range(start, start + r):
         if supported[j]:
             out[i] = ev[j]
-            ox[i] = x[j]
-            oy[i] = y[j]
-            ot[i] = t[j]
-            op[i] = p[j]
+            cols[0, i] = x[j]
+            cols[1, i] = y[j]
+            cols[2, i] = t[j]
+            cols[3, i] = p[j]
             i += 1
-    return out, ox, oy, ot, op
+    return out, cols
+
+
+@njit(cache=True)
+def _pack_lifetimes(lt, vx, vy, valid, out):
+    """``out`` (a LIFETIME_DTYPE array) from the four plain columns, in one pass."""
+    for k in range(lt.shape[0]):
+        o = out[k]
+        o.lifetime_us = lt[k]
+        o.vx_px_s = vx[k]
+        o.vy_px_s = vy[k]
+        o.valid = valid[k]

@@ -292,9 +292,9 @@ class EventBuffer:
         if self._last_time is None:
             return self._release(0, True)
         r = self._n_ready()
-        out, x, y, t, p = _release_slots(self._ev, *self._cols, self._supported, self._start, r)
+        out, cols = _release_slots(self._ev, *self._cols, self._supported, self._start, r)
         self._advance(r)
-        return out, (x, y, t, p)
+        return out, (cols[0], cols[1], cols[2], cols[3])
 
     @staticmethod
     def _check_until(t_us, newest: int | None) -> None:

@@ -18,6 +18,7 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_not_before, check_sensor_size, validated
+from ._stream_kernels import _pack_lifetimes
 from ._tiles import check_n_tiles
 from .buffer import EventBuffer
 from .edges import EdgeImage
@@ -388,10 +389,7 @@ class Detector:
         lt, vx, vy, valid = self.estimator._estimate(*cols)
         self.edges._apply(*cols, lt, vx, vy, valid)
         out = np.empty(n, dtype=LIFETIME_DTYPE)
-        out["lifetime_us"] = lt
-        out["vx_px_s"] = vx
-        out["vy_px_s"] = vy
-        out["valid"] = valid
+        _pack_lifetimes(lt, vx, vy, valid, out)
         return released, out
 
     def advance_to(self, t_us: int):
