@@ -207,7 +207,7 @@ def _chunkings(ev):
     }
 
 
-@pytest.mark.parametrize("case", ["default", "burst_reuse, predecessor", "line rule, lifetime_only"])
+@pytest.mark.parametrize("case", ["default", "burst_reuse, predecessor", "line rule, lifetime_only", "causal"])
 def test_streamed_bytes_equal_one_shot_for_any_chunking(edge_events, random_events, case):
     """Every chunking: released events, lifetimes and the edge image's state = the one-shot stages' bytes.
 
@@ -226,6 +226,8 @@ def test_streamed_bytes_equal_one_shot_for_any_chunking(edge_events, random_even
     if case.startswith("line"):
         kw["buffer_params"] = line_params(line_window_us=20_000)
         display = "lifetime_only"
+    if case.startswith("causal"):
+        kw["buffer_params"] = BufferParams(tau_min_us=3_000, mode="causal")
     res = detect(ev, size, **kw)
     kept, lts = ev[res.kept], res.lifetimes[res.kept]
     ref = EdgeImage(size, display=display)
