@@ -151,14 +151,23 @@ def stream(events: np.ndarray, size: SensorSize, chunk_us: int, params=None, imp
     return np.array(wall), np.array(cpu), np.array(counts), time.thread_time() - c_all
 
 
-def one_shot_cpu(events: np.ndarray, size: SensorSize, params=None, impl=None) -> float:
-    """CPU seconds of the same work in one call per stage: buffer + estimator (``detect``) + the edge image."""
+def one_shot_cpu(events: np.ndarray, size: SensorSize, params=None, impl=None) -> tuple[float, float]:
+    """CPU seconds of the same work in one call per stage, and of the estimator alone.
+
+    The first: buffer + estimator (``detect``) + the edge image; the second: the
+    estimator alone on the kept events, one call (``detect(..., use_buffer=False)``),
+    the floor of any pipeline around today's estimator.
+    """
     impl = impl or _THIS
     c0 = time.thread_time()
     res = impl.detect(events, size, params=params)
     image = impl.EdgeImage(size)
     image.process(events[res.kept], res.lifetimes[res.kept])
-    return time.thread_time() - c0
+    c1 = time.thread_time()
+    kept = events[res.kept]
+    c2 = time.thread_time()
+    impl.detect(kept, size, params=params, use_buffer=False)
+    return c1 - c0, time.thread_time() - c2
 
 
 def fixed_cost(events: np.ndarray, size: SensorSize, n: int = 3000, params=None, impl=None) -> float:
@@ -220,6 +229,7 @@ def report(label, events, size, chunk_us, passes, target_ns, params=None, impls=
 def _line(label, size, rate, chunk_us, passes, target_ns, runs, whole, a, n_events, load):
     wall, cpu, counts, _ = runs[0]
     cpu_min = np.min([r[1] for r in runs], axis=0)
+    whole, alone = [w[0] for w in whole], [w[1] for w in whole]
     ratio = np.median([r[3] for r in runs]) / np.median(whole)
     n = counts.sum()
     chunk_s = chunk_us * 1e-6
@@ -235,7 +245,7 @@ def _line(label, size, rate, chunk_us, passes, target_ns, runs, whole, a, n_even
           f"sustained {n / wall.sum() / 1e6:5.2f} M ev/s wall, {n / cpu_min.sum() / 1e6:5.2f} CPU | keeps up: wall "
           f"{'yes' if keeps else 'no'}, CPU {'yes' if keeps_cpu else 'no'} | streamed / one-shot CPU {ratio:.2f} "
           f"({np.median([r[3] for r in runs]) / n_events * 1e9:.0f} / {np.median(whole) / n_events * 1e9:.0f} "
-          f"ns per input event) | fixed {a * 1e6:.0f} us per chunk + {per_event * 1e9:.0f} ns/event; at {target_ns:.0f} "
+          f"ns per input event; the estimator alone {np.median(alone) / n_events * 1e9:.0f}, {np.median(alone) / np.median([r[3] for r in runs]) * 100:.0f} % of streamed) | fixed {a * 1e6:.0f} us per chunk + {per_event * 1e9:.0f} ns/event; at {target_ns:.0f} "
           f"ns/event p99 would be {proj * 1e6:.0f} us | load {load} on {os.cpu_count()} CPUs")
 
 
