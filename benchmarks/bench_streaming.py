@@ -36,9 +36,45 @@ a warm-up (compilation, caches) and are not counted. The machine is shared:
 the load average is printed with the figures, CPU latencies are the robust
 ones, wall latencies include preemption by other jobs.
 
+Also printed: the estimator alone, its own ``process`` (a fresh one, checks
+and record packing included) on the very chunks the stream released, and its
+share of the streamed CPU: what is left when the buffer, the edge image and
+the glue cost nothing. ``--base REV`` runs the ``detector/`` of a git revision
+beside this tree's in the same process (its files in a temporary package,
+``evedge.detector`` renamed; the two alternate within every pass, so they see
+the same load), one line each; ``--only`` picks inputs; ``--intra key=value``
+sets IntraParams fields for both (e.g. ``burst_reuse=true``).
+
 Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000] [--passes 3]
-[--target-ns 286] [--intra burst_reuse=true ...]`` (``--intra``: IntraParams fields, as in
-``robustness_grid.py``).
+[--target-ns 286] [--intra burst_reuse=true ...] [--base REV] [--only recorded 2M copies tiled]``
+(``--intra``: IntraParams fields, as in ``robustness_grid.py``).
+
+Measured 2026-12-03 09:09-09:16 UTC, ``--base 2a1c4b7 --passes 5`` then the same with
+``--intra burst_reuse=true`` (load 3.4 -> 5.1 on 2 CPUs: four engineers), 2a1c4b7 -> this tree
+(the built-in stages pass plain columns, session 7); CPU latencies: each chunk's least over 5 passes:
+
+=======================  =============  ===============  ================  ===========================
+input, estimator         p99 CPU (us)   sustained CPU    streamed /        the estimator's process
+                                        (M ev/s)         one-shot          alone: % of streamed
+=======================  =============  ===============  ================  ===========================
+as recorded, defaults    571 -> 464     0.73 -> 0.95     1.43 -> 1.12      69 -> 101
+2 M ev/s, defaults       3786 -> 3406   0.80 -> 0.88     1.08 -> 1.02      85 -> 89
+time / 9, defaults       4992 -> 5007   0.81 -> 0.83     1.06 -> 1.02      80 -> 89
+tiled x 9, defaults      4987 -> 4242   0.71 -> 0.88     1.38 -> 1.00      61 -> 78
+as recorded, reuse       425 -> 333     0.96 -> 1.39     1.68 -> 1.12      58 -> 92
+2 M ev/s, reuse          2676 -> 2252   1.15 -> 1.44     1.07 -> 0.93      82 -> 91
+time / 9, reuse          3567 -> 2985   1.08 -> 1.32     1.11 -> 0.90      77 -> 95
+tiled x 9, reuse         3768 -> 3282   0.97 -> 1.15     1.14 -> 0.99      74 -> 73
+=======================  =============  ===============  ================  ===========================
+
+The fixed cost of a chunk went from 45-49 to 13-15 us in every row. Keeping up at 2 M events/s
+(p99 under 1 ms, i.e. ~400 ns per event for the p99 chunk's 2453 events) is not met, with or
+without burst reuse: the estimator's own ``process`` on the same chunks is 78-101 % of the
+streamed CPU now (73-95 % with reuse; the tiled sensor's larger states cost the buffer and the
+edge image more), and streamed / one-shot is about 1 (below it: the one-shot ``detect`` pays
+record copies and first touches of whole-stream arrays), so what is left is the estimator's
+per-event work. Run-to-run noise at this load: about +-10 % on a row (the same tree's rows of
+two runs differ that much).
 """
 
 from __future__ import annotations
