@@ -70,8 +70,8 @@ tiled x 9, reuse         3768 -> 3282   0.97 -> 1.15     1.14 -> 0.99      74 ->
 The fixed cost of a chunk went from 45-49 to 13-15 us in every row. Keeping up at 2 M events/s
 (p99 under 1 ms, i.e. ~400 ns per event for the p99 chunk's 2453 events) is not met, with or
 without burst reuse: the estimator's own ``process`` on the same chunks is 78-101 % of the
-streamed CPU now (73-95 % with reuse; the tiled sensor's larger states cost the buffer and the
-edge image more), and streamed / one-shot is about 1 (below it: the one-shot ``detect`` pays
+streamed CPU now (73-95 % with reuse; the lowest on the tiled sensor, where the rest of the
+pipeline costs more), and streamed / one-shot is about 1 (below it: the one-shot ``detect`` pays
 record copies and first touches of whole-stream arrays), so what is left is the estimator's
 per-event work. Run-to-run noise at this load: about +-10 % on a row (the same tree's rows of
 two runs differ that much).

@@ -212,8 +212,10 @@ class EventBuffer:
         arrays = [self._ev, *self._cols, self._prev, self._supported]
         new = []
         for arr in arrays:
-            out = np.empty(cap, dtype=arr.dtype)
-            out[:pending] = arr[sl]
+            # the same capacity: moved within the arrays (no fresh memory to fault in at every move;
+            # nothing outside holds a view of them: released events and columns are copies)
+            out = arr if cap == self._cap else np.empty(cap, dtype=arr.dtype)
+            out[:pending] = arr[sl]  # (numpy buffers an overlapping copy)
             new.append(out)
         self._ev, self._cols, self._prev, self._supported = new[0], new[1:5], new[5], new[6]
         self._cap, self._start, self._end = cap, 0, pending
