@@ -273,14 +273,16 @@ def report(label, events, size, chunk_us, passes, target_ns, params=None, impls=
     fixed = {name: fixed_cost(events, size, params=params, impl=impl) for name, impl in impls}
     load_end = os.getloadavg()[0]
     for name, _ in impls:
-        _line(f"{label} {name}".rstrip(), size, rate, chunk_us, passes, target_ns, runs[name], whole[name], alone[name], fixed[name],
-              events.size, f"{load:.2f}->{load_end:.2f}")
+        _line(f"{label} {name}".rstrip(), size, rate, chunk_us, passes, target_ns, runs[name], whole[name],
+              alone[name], fixed[name], events.size, f"{load:.2f}->{load_end:.2f}")
 
 
 def _line(label, size, rate, chunk_us, passes, target_ns, runs, whole, alone, a, n_events, load):
+    """Print :func:`report`'s line of one implementation from its passes."""
     wall, cpu, counts, _ = runs[0]
+    streamed = np.median([r[3] for r in runs])
     cpu_min = np.min([r[1] for r in runs], axis=0)
-    ratio = np.median([r[3] for r in runs]) / np.median(whole)
+    ratio = streamed / np.median(whole)
     n = counts.sum()
     chunk_s = chunk_us * 1e-6
     keeps = n / wall.sum() >= rate and np.quantile(wall, 0.99) < chunk_s
@@ -294,8 +296,10 @@ def _line(label, size, rate, chunk_us, passes, target_ns, runs, whole, alone, a,
           f"{np.quantile(cpu_min, 0.99) * 1e6:5.0f} us (p99 / chunk {np.quantile(cpu_min, 0.99) / chunk_s:.2f}) | "
           f"sustained {n / wall.sum() / 1e6:5.2f} M ev/s wall, {n / cpu_min.sum() / 1e6:5.2f} CPU | keeps up: wall "
           f"{'yes' if keeps else 'no'}, CPU {'yes' if keeps_cpu else 'no'} | streamed / one-shot CPU {ratio:.2f} "
-          f"({np.median([r[3] for r in runs]) / n_events * 1e9:.0f} / {np.median(whole) / n_events * 1e9:.0f} "
-          f"ns per input event; the estimator alone on the released chunks {np.median(alone) / n_events * 1e9:.0f}, {np.median(alone) / np.median([r[3] for r in runs]) * 100:.0f} % of streamed) | fixed {a * 1e6:.0f} us per chunk + {per_event * 1e9:.0f} ns/event; at {target_ns:.0f} "
+          f"({streamed / n_events * 1e9:.0f} / {np.median(whole) / n_events * 1e9:.0f} ns per input event; the "
+          f"estimator alone on the released chunks {np.median(alone) / n_events * 1e9:.0f}, "
+          f"{np.median(alone) / streamed * 100:.0f} % of streamed) | fixed {a * 1e6:.0f} us per chunk + "
+          f"{per_event * 1e9:.0f} ns/event; at {target_ns:.0f} "
           f"ns/event p99 would be {proj * 1e6:.0f} us | load {load} on {os.cpu_count()} CPUs")
 
 
