@@ -49,32 +49,31 @@ Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1
 [--target-ns 286] [--intra burst_reuse=true ...] [--base REV] [--only recorded 2M copies tiled]``
 (``--intra``: IntraParams fields, as in ``robustness_grid.py``).
 
-Measured 2026-12-03 09:09-09:16 UTC, ``--base 2a1c4b7 --passes 5`` then the same with
-``--intra burst_reuse=true`` (load 3.4 -> 5.1 on 2 CPUs: four engineers), 2a1c4b7 -> this tree
+Measured 2026-12-03 09:22-09:29 UTC, ``--base 2a1c4b7 --passes 5`` then the same with
+``--intra burst_reuse=true`` (load 4.7 -> 6.5 on 2 CPUs: four engineers), 2a1c4b7 -> this tree
 (the built-in stages pass plain columns, session 7); CPU latencies: each chunk's least over 5 passes:
 
 =======================  =============  ===============  ================  ===========================
 input, estimator         p99 CPU (us)   sustained CPU    streamed /        the estimator's process
                                         (M ev/s)         one-shot          alone: % of streamed
 =======================  =============  ===============  ================  ===========================
-as recorded, defaults    571 -> 464     0.73 -> 0.95     1.43 -> 1.12      69 -> 101
-2 M ev/s, defaults       3786 -> 3406   0.80 -> 0.88     1.08 -> 1.02      85 -> 89
-time / 9, defaults       4992 -> 5007   0.81 -> 0.83     1.06 -> 1.02      80 -> 89
-tiled x 9, defaults      4987 -> 4242   0.71 -> 0.88     1.38 -> 1.00      61 -> 78
-as recorded, reuse       425 -> 333     0.96 -> 1.39     1.68 -> 1.12      58 -> 92
-2 M ev/s, reuse          2676 -> 2252   1.15 -> 1.44     1.07 -> 0.93      82 -> 91
-time / 9, reuse          3567 -> 2985   1.08 -> 1.32     1.11 -> 0.90      77 -> 95
-tiled x 9, reuse         3768 -> 3282   0.97 -> 1.15     1.14 -> 0.99      74 -> 73
+as recorded, defaults    583 -> 459     0.73 -> 0.98     1.43 -> 1.10      68 -> 94
+2 M ev/s, defaults       3399 -> 3206   0.86 -> 0.94     1.03 -> 1.01      86 -> 88
+time / 9, defaults       4566 -> 4408   0.87 -> 0.92     1.08 -> 0.95      79 -> 92
+tiled x 9, defaults      4830 -> 4382   0.72 -> 0.84     1.05 -> 1.02      76 -> 85
+as recorded, reuse       459 -> 329     0.92 -> 1.40     1.84 -> 1.14      55 -> 92
+2 M ev/s, reuse          2627 -> 2354   1.21 -> 1.39     1.11 -> 0.95      77 -> 87
+time / 9, reuse          2875 -> 2718   1.38 -> 1.50     1.01 -> 0.91      78 -> 87
+tiled x 9, reuse         3413 -> 2909   1.13 -> 1.24     1.11 -> 0.95      67 -> 87
 =======================  =============  ===============  ================  ===========================
 
-The fixed cost of a chunk went from 45-49 to 13-15 us in every row. Keeping up at 2 M events/s
-(p99 under 1 ms, i.e. ~400 ns per event for the p99 chunk's 2453 events) is not met, with or
-without burst reuse: the estimator's own ``process`` on the same chunks is 78-101 % of the
-streamed CPU now (73-95 % with reuse; the lowest on the tiled sensor, where the rest of the
-pipeline costs more), and streamed / one-shot is about 1 (below it: the one-shot ``detect`` pays
-record copies and first touches of whole-stream arrays), so what is left is the estimator's
-per-event work. Run-to-run noise at this load: about +-10 % on a row (the same tree's rows of
-two runs differ that much).
+The fixed cost of a chunk went from 46-47 to 13-14 us (one row 81 -> 26, a load spike). Keeping
+up at 2 M events/s (p99 under 1 ms, i.e. ~400 ns per event for the p99 chunk's 2453 events) is
+not met, with or without burst reuse: the estimator's own ``process`` on the same chunks is
+85-94 % of the streamed CPU now (87-92 % with reuse), and streamed / one-shot is about 1 (below
+it, presumably: the one-shot ``detect`` copies records and touches whole-stream arrays; not
+measured), so what is left is the estimator's per-event work. Run-to-run noise at this load:
+about +-10 % on a row (a run 09:09-09:16, load 3.4-5.1, before 3872d18, differed that much).
 """
 
 from __future__ import annotations

@@ -320,8 +320,8 @@ class Detector:
     estimator goes through their ``process``, checked. The bytes are the same
     (``tests/detector/test_pipeline.py`` compares each call's output with the
     stage-by-stage path's for several chunkings). Per-chunk fixed cost
-    (``benchmarks/bench_streaming.py --base 2a1c4b7``, one-event chunks) 45-49 -> 13-15 us;
-    at 2 M events/s the estimator's own ``process`` on the same chunks is then 89-91 % of the
+    (``benchmarks/bench_streaming.py --base 2a1c4b7``, one-event chunks) 46-47 -> 13-14 us;
+    at 2 M events/s the estimator's own ``process`` on the same chunks is then 87-88 % of the
     streamed CPU (the bench's docstring gives the figures).
     """
 
