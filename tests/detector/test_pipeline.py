@@ -242,6 +242,7 @@ def test_streamed_bytes_equal_one_shot_for_any_chunking(edge_events, random_even
             got = [fast.process(chunk, until_us=until)] + ([fast.advance_to(adv)] if adv is not None else [])
             want = [slow.process(chunk, until_us=until)] + ([slow.advance_to(adv)] if adv is not None else [])
             for (ge, gl), (we, wl) in zip(got, want):
+                assert ge.dtype == we.dtype and gl.dtype == wl.dtype and ge.shape == we.shape == gl.shape, name
                 assert ge.tobytes() == we.tobytes() and gl.tobytes() == wl.tobytes(), name
             outs += got
         outs.append(fast.flush())
