@@ -58,13 +58,11 @@ One shot (:func:`filter_events`): two passes instead of walks
 
 Streaming (:class:`EventBuffer`)
     Keeps the chain kernel (an unsupported event's later neighbours are not
-    known yet), reading the fields of its record buffer in place and copying
-    records as raw bytes (numpy copies the packed records field by field,
-    ~13 ns per event, against ~0.4): fed ``stripes.mat`` x 10 in chunks of
-    100 k / 10 k events, 85.7 -> 50.7 and 72.4 -> 50.5 ns per event (thread
-    CPU, least of 5, the class before, taken from git, and after in one run;
-    load 3.1); ``benchmarks/bench_buffer.py`` prints today's (above: 58.5 /
-    54.5 on the 10 M file).
+    known yet); a chunk is checked while it is copied into the slots and the
+    decided events are released with their int64 columns by the kernels of
+    :mod:`evedge.detector._stream_kernels` (the streaming Detector passes those
+    columns on, see :mod:`evedge.detector.pipeline`). ``benchmarks/bench_buffer.py``
+    prints its ns per event beside the one-shot passes'.
 
 Line rule (``line_window_us``, a departure from the paper, off by default; :func:`line_params`)
     The 10 ms window removes slow oblique edges: at 10 px/s and 20 degrees the
@@ -105,8 +103,9 @@ import numpy as np
 
 from evedge.events import EVENT_DTYPE
 
-from ._buffer_kernels import (_buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state, narrow_state,
-                              one_shot_exact, run_passes)
+from ._buffer_kernels import (NEVER, _buffer_scan, _line_scan, _n_decided, empty_line_state, empty_state,
+                              narrow_state, one_shot_exact, run_passes)
+from ._stream_kernels import _fill_slots, _release_slots
 from ._tiles import check_n_tiles, filter_tiled
 from ._checks import check_events, check_not_before, check_positive, check_sensor_size, columns
 from evedge._validate import check_real
@@ -114,9 +113,6 @@ from evedge._validate import check_real
 from .protocols import METHODS
 
 _MODES = ("buffered", "causal")
-#: An event as 13 raw bytes: numpy copies records of the packed EVENT_DTYPE field by field
-#: (~13 ns per event), the same bytes as np.void at memcpy speed (~0.4).
-_RECORD = np.dtype((np.void, EVENT_DTYPE.itemsize))
 
 
 @dataclass(frozen=True)
@@ -233,11 +229,12 @@ class EventBuffer:
         w, h = self.sensor_size.width, self.sensor_size.height
         self._state = empty_state(w, h)  # per pixel and polarity, padded border (see _buffer_kernels)
         self._line_state = empty_line_state(w, h) if self.params.line_window_us else None
-        # the unreleased events are slots [_start, _end) of growable arrays (the events, the
-        # kernel reading their fields in place): a chunk costs O(chunk), not O(events
-        # waiting), however long the support window keeps them
+        # the unreleased events are slots [_start, _end) of growable arrays (the events
+        # and their plain columns, converted once on arrival): a chunk costs O(chunk),
+        # not O(events waiting), however long the support window keeps them
         self._cap = 0
         self._ev = np.empty(0, dtype=EVENT_DTYPE)
+        self._cols = [np.empty(0, dtype=np.int64) for _ in range(4)]  # x, y, t, p
         self._prev = np.empty(0, dtype=np.int64)
         self._supported = np.empty(0, dtype=bool)
         self._start = 0
@@ -259,12 +256,15 @@ class EventBuffer:
         while pending + m > cap // 2:  # at least half free after the move: amortised O(1) per event
             cap *= 2
         sl = slice(self._start, self._end)
+        arrays = [self._ev, *self._cols, self._prev, self._supported]
         new = []
-        for arr in (self._ev.view(_RECORD), self._prev, self._supported):
-            out = np.empty(cap, dtype=arr.dtype)
-            out[:pending] = arr[sl]
+        for arr in arrays:
+            # the same capacity: moved within the arrays (no fresh memory to fault in at every move;
+            # nothing outside holds a view of them: released events and columns are copies)
+            out = arr if cap == self._cap else np.empty(cap, dtype=arr.dtype)
+            out[:pending] = arr[sl]  # (numpy buffers an overlapping copy)
             new.append(out)
-        self._ev, self._prev, self._supported = new[0].view(EVENT_DTYPE), new[1], new[2]
+        self._ev, self._cols, self._prev, self._supported = new[0], new[1:5], new[5], new[6]
         self._cap, self._start, self._end = cap, 0, pending
 
     def process(self, events: np.ndarray) -> np.ndarray:
@@ -273,15 +273,25 @@ class EventBuffer:
         check_not_before(events, self._last_time)
         if events.size == 0:
             return events[:0].copy()
+        self._scan(events)
+        return self._release(self._n_ready())
+
+    def _scan(self, events: np.ndarray) -> None:
+        """Append a checked, non-empty chunk (not before the newest event) and run the rules on it."""
         m = events.shape[0]
         self._make_room(m)
         a, b = self._end, self._end + m
-        self._ev[a:b].view(_RECORD)[:] = events.view(_RECORD)
+        self._ev[a:b] = events
+        for col, field in zip(self._cols, "xytp"):
+            col[a:b] = events[field]  # converted to int64 in place (no temporary column)
         self._end = b  # prev and supported of the new slots are set by the kernel
+        self._scan_slots(a)
+
+    def _scan_slots(self, a: int) -> None:
+        """Run the rules on the new slots ``[a, _end)`` (filled) with the pending ones before them."""
+        b = self._end
         sl = slice(self._start, b)
-        # the fields in place (strided views; int64 copies of them cost ~1/3 of a chunk's time)
-        ev = self._ev[sl]
-        x, y, t, p = ev["x"], ev["y"], ev["t"], ev["p"]
+        x, y, t, p = (col[sl] for col in self._cols)
         tau = self.params.tau_min_us
         causal = self.params.mode == "causal"
         _buffer_scan(x, y, t, p, self._prev[sl], self._supported[sl], a - self._start, self._base_g, self._state,
@@ -291,7 +301,56 @@ class EventBuffer:
                        self.sensor_size.width, self.sensor_size.height, self.params.line_window_us,
                        self.params.line_tolerance, self.params.line_quiet, self.params.line_count)
         self._last_time = int(t[-1])
-        return self._release(_n_decided(t, self._supported[sl], self._last_time, self.params.hold_us, causal))
+
+    def _n_ready(self) -> int:
+        """How many of the pending slots are decided by ``_last_time`` (a leading run)."""
+        sl = slice(self._start, self._end)
+        return _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.hold_us,
+                          self.params.mode == "causal")
+
+    def _take(self, events: np.ndarray | None, until_us: int | None):
+        """:meth:`process` then :meth:`advance_to` in one release, with the released events' columns.
+
+        ``events``: a chunk of :data:`~evedge.events.EVENT_DTYPE`, checked here in the
+        pass that copies it (None: none). Returns the released events and their
+        x, y, t, p (int64, as :func:`columns`), the same events as the two calls
+        (the decided run only grows with the time); or None, changing nothing,
+        when the chunk or ``until_us`` fails a check (the caller then runs the
+        full checks for their messages).
+        """
+        has_until = until_us is not None
+        if has_until and (isinstance(until_us, bool) or not isinstance(until_us, (int, np.integer))):
+            return None
+        until = int(until_us) if has_until else 0
+        if events is None:
+            if has_until and self._last_time is not None and until < self._last_time:
+                return None
+        else:
+            m = events.shape[0]
+            self._make_room(m)
+            a = self._end
+            if not _fill_slots(events, self.sensor_size.width, self.sensor_size.height,
+                               NEVER if self._last_time is None else self._last_time, has_until, until, self._ev,
+                               *self._cols, a):
+                return None
+            if m:
+                self._end = a + m
+                self._scan_slots(a)
+        if has_until:
+            self._last_time = until
+        if self._last_time is None:
+            return self._release(0, True)
+        r = self._n_ready()
+        out, cols = _release_slots(self._ev, *self._cols, self._supported, self._start, r)
+        self._advance(r)
+        return out, (cols[0], cols[1], cols[2], cols[3])
+
+    @staticmethod
+    def _check_until(t_us, newest: int | None) -> None:
+        if isinstance(t_us, bool) or not isinstance(t_us, (int, np.integer)):
+            raise TypeError(f"t_us must be an integer (microseconds), got {t_us!r}")
+        if newest is not None and t_us < newest:
+            raise ValueError(f"t_us={t_us} is before the newest processed event (t={newest} us)")
 
     def advance_to(self, t_us: int) -> np.ndarray:
         """Declare that no event earlier than ``t_us`` will come; return the kept events now decided.
@@ -300,22 +359,24 @@ class EventBuffer:
         ``t + tau_min_us``; a caller with a clock can bound the latency in wall time.
         Later chunks must not start before ``t_us``.
         """
-        if isinstance(t_us, bool) or not isinstance(t_us, (int, np.integer)):
-            raise TypeError(f"t_us must be an integer (microseconds), got {t_us!r}")
-        if self._last_time is not None and t_us < self._last_time:
-            raise ValueError(f"t_us={t_us} is before the newest processed event (t={self._last_time} us)")
+        self._check_until(t_us, self._last_time)
         self._last_time = int(t_us)
-        sl = slice(self._start, self._end)
-        r = _n_decided(self._ev["t"][sl], self._supported[sl], self._last_time, self.params.hold_us,
-                       self.params.mode == "causal")
-        return self._release(r)
+        return self._release(self._n_ready())
 
-    def _release(self, r: int) -> np.ndarray:
+    def _release(self, r: int, with_columns: bool = False):
+        """The kept events of the next ``r`` slots (and, ``with_columns``, their x, y, t, p columns)."""
         sl = slice(self._start, self._start + r)
-        out = self._ev[sl].compress(self._supported[sl])  # (faster than boolean indexing on records)
+        keep = self._supported[sl]
+        out = self._ev[sl].compress(keep)  # (faster than boolean indexing on records)
+        self._advance(r)
+        if with_columns:
+            return out, tuple(col[sl].compress(keep) for col in self._cols)
+        return out
+
+    def _advance(self, r: int) -> None:
+        """The next ``r`` slots are released."""
         self._start += r
         self._base_g += r
-        return out
 
     def flush(self) -> np.ndarray:
         """End of stream: release the kept events still waiting for support."""

@@ -133,13 +133,20 @@ class EdgeImage:
         check_not_before(events, self._last_time)
         if events.size == 0:
             return
-        x, y, t, p = columns(events)
-        _edge_update(x, y, t, np.ascontiguousarray(lifetimes["lifetime_us"]),
-                     np.ascontiguousarray(lifetimes["vx_px_s"]), np.ascontiguousarray(lifetimes["vy_px_s"]),
-                     np.ascontiguousarray(lifetimes["valid"]), self._last_t, self._expiry,
-                     self.sensor_size.width, self.sensor_size.height, self.clear_behind,
-                     self.invalid == "clear", _DX, _DY, p, self.burst_lifetimes, self._start_t, self._prev_lt,
-                     self._prev_pol)
+        self._apply(*columns(events), np.ascontiguousarray(lifetimes["lifetime_us"]),
+                    np.ascontiguousarray(lifetimes["vx_px_s"]), np.ascontiguousarray(lifetimes["vy_px_s"]),
+                    np.ascontiguousarray(lifetimes["valid"]))
+
+    def _apply(self, x, y, t, p, lt, vx, vy, valid) -> None:
+        """:meth:`process` on plain columns: the events' (:func:`columns`) and their lifetimes' fields.
+
+        A checked, non-empty chunk not before the newest processed event, with
+        contiguous float64 ``lt, vx, vy`` and bool ``valid`` (for a pipeline that
+        holds them already: :class:`~evedge.detector.pipeline.Detector`).
+        """
+        _edge_update(x, y, t, lt, vx, vy, valid, self._last_t, self._expiry, self.sensor_size.width,
+                     self.sensor_size.height, self.clear_behind, self.invalid == "clear", _DX, _DY, p,
+                     self.burst_lifetimes, self._start_t, self._prev_lt, self._prev_pol)
         self._last_time = int(t[-1])
 
     def image_at(self, t_us) -> np.ndarray:

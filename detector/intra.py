@@ -882,7 +882,24 @@ class IntraPixelLifetime:
         if n == 0:
             return empty_lifetimes(0)
         out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
-        x, y, t, p = columns(events)
+        lt, vx, vy, valid = self._estimate(*columns(events))
+        out["lifetime_us"] = lt
+        out["vx_px_s"] = vx
+        out["vy_px_s"] = vy
+        out["valid"] = valid
+        return out
+
+    def _estimate(self, x, y, t, p):
+        """:meth:`process` on the plain columns (:func:`columns`) of a checked, non-empty chunk.
+
+        Returns ``lt, vx, vy, valid`` (the output's fields as plain arrays) after
+        the same state updates as :meth:`process`: for a pipeline that holds the
+        columns already (:class:`~evedge.detector.pipeline.Detector`).
+        """
+        n = x.shape[0]
+        if self._last_time is not None and t[0] < self._last_time:
+            raise ValueError(f"events: chunk starts at t={int(t[0])} us, before the previous chunk's last event at "
+                             f"t={self._last_time} us; chunks must arrive in time order")
         lt = np.empty(n)
         vx = np.empty(n)
         vy = np.empty(n)
@@ -917,11 +934,7 @@ class IntraPixelLifetime:
         self._n_seen += n
         self._last_time = int(t[-1])
         self.sae._last_time = self._last_time
-        out["lifetime_us"] = lt
-        out["vx_px_s"] = vx
-        out["vy_px_s"] = vy
-        out["valid"] = valid
-        return out
+        return lt, vx, vy, valid
 
 
 def estimate_lifetimes(events: np.ndarray, sensor_size, params: IntraParams | None = None, *,

@@ -5,7 +5,8 @@ import importlib.util
 import numpy as np
 import pytest
 
-from evedge.detector import BufferParams, Detector, IntraParams, detect, edge_frames, estimate_lifetimes, filter_events
+from evedge.detector import (BufferParams, Detector, EdgeImage, IntraParams, detect, edge_frames, estimate_lifetimes,
+                             filter_events)
 from evedge.events import SensorSize
 
 
@@ -188,3 +189,105 @@ def test_edge_frames_of_a_streaming_edge_detector(edge_events):
     want[order] = accumulate_time(ev, size, np.asarray(times)[order], 2000) > 0
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(edge_frames_of("time", ev, size, times, {"window_us": 2000}), got)
+
+
+def _chunkings(ev):
+    """(name, list of (chunk, until_us or None, advance_to or None)) covering the streaming calls."""
+    t = ev["t"]
+    rng = np.random.default_rng(7)
+    cuts = np.sort(rng.integers(0, ev.size, 25))
+    ends = np.arange(int(t[0]) + 1000, int(t[-1]) + 1000, 1000)
+    ms = np.searchsorted(t, ends)
+    return {
+        "one event, until its time": [(ev[i:i + 1], int(t[i]), None) for i in range(ev.size)],
+        "1 ms, until its end": [(ev[a:b], int(e), None) for a, b, e in zip(np.r_[0, ms[:-1]], ms, ends)],
+        "random sizes, advance_to": [(c, None, int(c["t"][-1]) if c.size else None)
+                                     for c in np.split(ev, cuts)],
+        "random sizes, no clock": [(c, None, None) for c in np.split(ev, cuts)],
+    }
+
+
+@pytest.mark.parametrize("case", ["default", "burst_reuse, predecessor", "line rule, lifetime_only", "causal"])
+def test_streamed_bytes_equal_one_shot_for_any_chunking(edge_events, random_events, case):
+    """Every chunking: released events, lifetimes and the edge image's state = the one-shot stages' bytes.
+
+    And each call's output = that of the stages called one by one (the generic path: checks, record
+    arrays, one call per stage), so passing the columns between the built-in stages changes nothing.
+    """
+    from evedge.detector.buffer import line_params
+
+    size = SensorSize(24, 20)
+    ev = _noisy_edges(edge_events, random_events)
+    kw = {"buffer_params": BufferParams(tau_min_us=3_000)}
+    display = None
+    if case.startswith("burst_reuse"):
+        kw["params"] = IntraParams(burst_reuse=True)
+        display = "predecessor"  # clears behind each event: the flow counts
+    if case.startswith("line"):
+        kw["buffer_params"] = line_params(line_window_us=20_000)
+        display = "lifetime_only"
+    if case.startswith("causal"):
+        kw["buffer_params"] = BufferParams(tau_min_us=3_000, mode="causal")
+    res = detect(ev, size, **kw)
+    kept, lts = ev[res.kept], res.lifetimes[res.kept]
+    ref = EdgeImage(size, display=display)
+    ref.process(kept, lts)
+    T = int(ev["t"][-1]) + 1
+    for name, calls in _chunkings(ev).items():
+        fast, slow = Detector(size, display=display, **kw), Detector(size, display=display, **kw)
+        assert fast._columns
+        slow._columns = False
+        outs = []
+        for chunk, until, adv in calls:
+            got = [fast.process(chunk, until_us=until)] + ([fast.advance_to(adv)] if adv is not None else [])
+            want = [slow.process(chunk, until_us=until)] + ([slow.advance_to(adv)] if adv is not None else [])
+            for (ge, gl), (we, wl) in zip(got, want):
+                assert ge.dtype == we.dtype and gl.dtype == wl.dtype and ge.shape == we.shape == gl.shape, name
+                assert ge.tobytes() == we.tobytes() and gl.tobytes() == wl.tobytes(), name
+            outs += got
+        outs.append(fast.flush())
+        assert np.concatenate([o[0] for o in outs]).tobytes() == kept.tobytes(), name
+        assert np.concatenate([o[1] for o in outs]).tobytes() == lts.tobytes(), name
+        for attr in ("_last_t", "_expiry", "_start_t", "_prev_lt", "_prev_pol"):
+            assert getattr(fast.edges, attr).tobytes() == getattr(ref, attr).tobytes(), (name, attr)
+        np.testing.assert_array_equal(fast.image_at(T), edge_frames(kept, lts, size, [T], display=display)[0])
+
+
+def test_streaming_detector_chunk_checks(edge_events):
+    """The one-pass chunk check: the full checks' messages on failure, conversions and read-only chunks accepted."""
+    size = SensorSize(8, 8)
+    ev, _ = edge_events(8, 8, 500, 0.2)
+    det = Detector(size)
+    bad = ev[:5].copy()
+    bad["x"][3] = 8
+    with pytest.raises(ValueError, match=r"chunk: event 3 has x=8 outside the sensor \(8x8\)"):
+        det.process(bad)
+    bad = ev[:5].copy()
+    bad["y"][1] = -1
+    with pytest.raises(ValueError, match="chunk: event 1 has y=-1 outside"):
+        det.process(bad)
+    bad = ev[:5].copy()
+    bad["t"][2] = bad["t"][1] - 1
+    with pytest.raises(ValueError, match="chunk: timestamps are not sorted: event 2"):
+        det.process(bad)
+    ro = ev[:40].copy()
+    ro.flags.writeable = False  # a read-only chunk (e.g. a memory map): its own compiled check
+    det.process(ro, until_us=int(ro["t"][-1]))
+    with pytest.raises(ValueError, match="chunk starts at t="):
+        det.process(ev[:5])
+    # another dtype is converted (as_events), then checked as before
+    wide = np.zeros(3, dtype=[("x", "<i4"), ("y", "<i4"), ("t", "<i8"), ("p", "?")])
+    for f in "xytp":
+        wide[f] = ev[40:43][f]
+    det.process(wide)
+    # an until_us before the chunk's last event: refused before anything changes
+    ref = Detector(size)
+    ref.process(ro, until_us=int(ro["t"][-1]))
+    ref.process(wide)
+    with pytest.raises(ValueError, match="before the newest processed event"):
+        det.process(ev[43:60], until_us=int(ev["t"][50]))
+    with pytest.raises(TypeError, match="t_us must be an integer"):
+        det.process(ev[43:60], until_us=1.5)
+    a, b = det.process(ev[43:], until_us=int(ev["t"][-1])), ref.process(ev[43:], until_us=int(ev["t"][-1]))
+    assert a[0].tobytes() == b[0].tobytes() and a[1].tobytes() == b[1].tobytes()
+    assert det.flush()[1].tobytes() == ref.flush()[1].tobytes()

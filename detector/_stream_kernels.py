@@ -1,0 +1,71 @@
+"""numba kernels of the streaming detector's per-chunk bookkeeping (:class:`evedge.detector.pipeline.Detector`).
+
+The event buffer's slots (:class:`evedge.detector.buffer.EventBuffer`: the
+pending events and their int64 columns) are filled and released here in one
+pass each, instead of one numpy call per field; the buffer's rules stay in
+:mod:`evedge.detector._buffer_kernels` (called from Python, so their compiled
+code is never cached inside these kernels).
+"""
+
+import numpy as np
+from numba import njit
+
+@njit(cache=True)
+def _fill_slots(events, width, height, t_last, has_until, until, ev, x, y, t, p, a):
+    """Check a chunk and copy it into slots ``[a, a + n)`` of the buffer's arrays (records and int64 columns).
+
+    Returns False when an event lies outside the sensor or the times decrease
+    (starting from ``t_last``), or ``until`` (when ``has_until``) is before the
+    newest event: the caller then runs the full checks, which name the
+    offending event, and no slot counts (the slots past the pending ones may
+    have been written, nothing else).
+    """
+    n = events.shape[0]
+    prev = t_last
+    for k in range(n):
+        e = events[k]
+        if e.x < 0 or e.x >= width or e.y < 0 or e.y >= height or e.t < prev:
+            return False
+        prev = e.t
+    if has_until and until < prev:
+        return False
+    for k in range(n):
+        e = events[k]
+        ev[a + k] = e
+        x[a + k] = e.x
+        y[a + k] = e.y
+        t[a + k] = e.t
+        p[a + k] = 1 if e.p else 0
+    return True
+
+
+@njit(cache=True)
+def _release_slots(ev, x, y, t, p, supported, start, r):
+    """The supported events of slots ``[start, start + r)``: their records and a (4, m) int64 array of x, y, t, p."""
+    m = 0
+    for j in range(start, start + r):
+        if supported[j]:
+            m += 1
+    out = np.empty(m, dtype=ev.dtype)
+    cols = np.empty((4, m), np.int64)  # one array for the four columns (its rows): one allocation, one return
+    i = 0
+    for j in range(start, start + r):
+        if supported[j]:
+            out[i] = ev[j]
+            cols[0, i] = x[j]
+            cols[1, i] = y[j]
+            cols[2, i] = t[j]
+            cols[3, i] = p[j]
+            i += 1
+    return out, cols
+
+
+@njit(cache=True)
+def _pack_lifetimes(lt, vx, vy, valid, out):
+    """``out`` (a LIFETIME_DTYPE array) from the four plain columns, in one pass."""
+    for k in range(lt.shape[0]):
+        o = out[k]
+        o.lifetime_us = lt[k]
+        o.vx_px_s = vx[k]
+        o.vy_px_s = vy[k]
+        o.valid = valid[k]
