@@ -47,7 +47,7 @@ sets IntraParams fields for both (e.g. ``burst_reuse=true``).
 
 Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000] [--passes 3]
 [--target-ns 286] [--intra burst_reuse=true ...] [--base REV] [--only recorded 2M copies tiled]``
-(``--intra``: IntraParams fields, as in ``robustness_grid.py``).
+(``--intra``: IntraParams fields, as in ``robustness_grid.py``, module ``_intra_options``).
 
 Measured 2026-12-03 09:22-09:29 UTC, ``--base 2a1c4b7 --passes 5`` then the same with
 ``--intra burst_reuse=true`` (load 4.7 -> 6.5 on 2 CPUs: four engineers), 2a1c4b7 -> this tree
@@ -90,7 +90,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_detector import load_stripes  # noqa: E402
-from robustness_grid import _parse_intra  # noqa: E402
+from _intra_options import _parse_intra  # noqa: E402
 
 from evedge.detector import Detector, EdgeImage, IntraParams, detect  # noqa: E402
 from evedge.events import EVENT_DTYPE, SensorSize  # noqa: E402
