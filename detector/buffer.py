@@ -269,6 +269,11 @@ class EventBuffer:
 
     def process(self, events: np.ndarray) -> np.ndarray:
         """Take a time-sorted chunk; return the kept events whose fate is now known."""
+        if type(events) is np.ndarray and events.ndim == 1 and events.dtype == EVENT_DTYPE:
+            taken = self._take(events, None)  # checked in the pass that copies it
+            if taken is not None:
+                return taken[0]
+            # refused (nothing changed): the full checks below raise with their messages
         events = check_events(events, self.sensor_size)
         check_not_before(events, self._last_time)
         if events.size == 0:
