@@ -1,6 +1,7 @@
 """CPU time per event of the one-shot event buffer (``filter_events``): the previous path against today's, one run.
 
-The previous path (session 6, copied here with its kernels: :func:`previous_filter`): ``check_events`` (range
+The previous path (session 6, :func:`previous_filter`: its chain kernel, still the streaming buffer's, and a
+copy of its line-rule kernel as it was): ``check_events`` (range
 and order, numpy passes over the strided fields), then the chain kernel ``_buffer_scan`` (one forward pass that
 walks each neighbour's chain of unsupported events, an int64 chain entry per event, 16 bytes of state per
 pixel), then, with the line rule, its kernel ``_line_scan`` as it was.
@@ -26,127 +27,27 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_buffer_rules import _best as least  # noqa: E402
+from bench_cli import repeated  # noqa: E402
 from bench_detector import load_stripes, tiled_stripes_gen4  # noqa: E402
 
 from numba import njit  # noqa: E402
 
 from evedge.detector._buffer_kernels import (LINE_FIELDS, NEVER, empty_line_state, empty_state,  # noqa: E402
                                              narrow_state, run_passes)
+from evedge.detector._buffer_kernels import _buffer_scan as buffer_scan_prev  # noqa: E402
 from evedge.detector._checks import check_events  # noqa: E402
 from evedge.detector.buffer import BufferParams, EventBuffer, filter_events, line_params  # noqa: E402
 
 
-# ---------------------------------------------------------------- the previous kernels (copies, session 6:
-# detector/_buffer_kernels.py at 2a1c4b7), the reference of the timings
-
-@njit(cache=True, inline="always")
-def _walk_prev(state, c, g, base_g, t, prev, supported, lo):
-    """Mark the unwalked events of the pixel at ``c``, newest ``g``, no older than ``lo``; then none is left unwalked.
-
-    ``g`` is unreleased and within the window (the caller checked ``last_t >= lo``).
-    An unwalked event older than ``lo`` can no longer be supported by a later event
-    (time-sorted stream): dropping it from the walk changes no decision.
-    """
-    state[c + 1] = -1
-    j = g - base_g
-    supported[j] = True
-    g = prev[j]
-    while g >= base_g:
-        j = g - base_g
-        if t[j] < lo:
-            break
-        supported[j] = True
-        g = prev[j]
-
-
-@njit(cache=True)
-def buffer_scan_prev(x, y, t, p, prev, supported, n_old, base_g, state, width, height, tau_us, causal):
-    """Decide support for events ``n_old..`` of the arrays (events ``0..n_old`` are carried over).
-
-    Arrays ``x, y, t, p, prev, supported`` hold the unreleased events, the first of which
-    has global index ``base_g``; ``state`` is :func:`new_state`'s array.
-    ``prev`` chains the unwalked events of one pixel and polarity (newest first).
-    Event ``k`` is supported by a neighbour fired within tau before it (``supported[k]``
-    is set, not or-ed: ``prev`` and ``supported`` of events ``n_old..`` need no
-    initialisation) and, in the buffered form, it supports every unwalked event of
-    each such neighbour within tau before it: a neighbour's events earlier than the
-    last walk there were either marked by that walk or are older than its window,
-    hence older than this event's (the stream is time-sorted).
-    Returns nothing; updates ``supported``, ``prev`` and ``state`` in place.
-    """
-    row = 2 * (width + 2)  # one padded row of (last_t, head_g) pairs
-    plane = (height + 2) * row
-    n = x.shape[0]
-    for k in range(n_old, n):
-        tk = t[k]
-        lo = tk - tau_us
-        # "fired within tau" is last_t >= lo and last_t != NEVER: one comparison with lo_n
-        lo_n = lo + (lo == NEVER)
-        c = p[k] * plane + (y[k] + 1) * row + 2 * (x[k] + 1)
-        # the 8 neighbours (not the pixel itself)
-        a0 = c - row - 2
-        a1 = c - row
-        a2 = c - row + 2
-        a3 = c - 2
-        a4 = c + 2
-        a5 = c + row - 2
-        a6 = c + row
-        a7 = c + row + 2
-        n0 = state[a0] >= lo_n
-        n1 = state[a1] >= lo_n
-        n2 = state[a2] >= lo_n
-        n3 = state[a3] >= lo_n
-        n4 = state[a4] >= lo_n
-        n5 = state[a5] >= lo_n
-        n6 = state[a6] >= lo_n
-        n7 = state[a7] >= lo_n
-        supported[k] = n0 | n1 | n2 | n3 | n4 | n5 | n6 | n7
-        if not causal:
-            # ...and this event supports the unwalked events of those neighbours within tau
-            # (rare: each event is walked at most once, so test all eight before branching)
-            h0 = state[a0 + 1]
-            h1 = state[a1 + 1]
-            h2 = state[a2 + 1]
-            h3 = state[a3 + 1]
-            h4 = state[a4 + 1]
-            h5 = state[a5 + 1]
-            h6 = state[a6 + 1]
-            h7 = state[a7 + 1]
-            w0 = n0 & (h0 >= base_g)
-            w1 = n1 & (h1 >= base_g)
-            w2 = n2 & (h2 >= base_g)
-            w3 = n3 & (h3 >= base_g)
-            w4 = n4 & (h4 >= base_g)
-            w5 = n5 & (h5 >= base_g)
-            w6 = n6 & (h6 >= base_g)
-            w7 = n7 & (h7 >= base_g)
-            if w0 | w1 | w2 | w3 | w4 | w5 | w6 | w7:
-                if w0:
-                    _walk_prev(state, a0, h0, base_g, t, prev, supported, lo)
-                if w1:
-                    _walk_prev(state, a1, h1, base_g, t, prev, supported, lo)
-                if w2:
-                    _walk_prev(state, a2, h2, base_g, t, prev, supported, lo)
-                if w3:
-                    _walk_prev(state, a3, h3, base_g, t, prev, supported, lo)
-                if w4:
-                    _walk_prev(state, a4, h4, base_g, t, prev, supported, lo)
-                if w5:
-                    _walk_prev(state, a5, h5, base_g, t, prev, supported, lo)
-                if w6:
-                    _walk_prev(state, a6, h6, base_g, t, prev, supported, lo)
-                if w7:
-                    _walk_prev(state, a7, h7, base_g, t, prev, supported, lo)
-        prev[k] = state[c + 1]
-        state[c + 1] = base_g + k
-        state[c] = tk
-
+# ---------------------------------------------------------------- the previous kernels, the reference of the
+# timings: the chain kernel is the streaming buffer's, unchanged (imported); the line rule's as it was at
+# 2a1c4b7 (a copy: its kernel has changed since)
 
 @njit(cache=True, inline="always")
 def _midway_prev(t1, tc, t2, line_us, line_tol):
@@ -245,27 +146,6 @@ def previous_filter(events, size, params):
         line_scan_prev(x, y, t, p, supported, 0, 0, empty_line_state(w, h), w, h, params.line_window_us,
                        params.line_tolerance, params.line_quiet, params.line_count)
     return supported
-
-
-def repeated(events, copies):
-    """``events`` ``copies`` times one after the other, each shifted past the one before (as ``bench_cli.py``)."""
-    span = int(events["t"][-1]) - int(events["t"][0]) + 1000
-    parts = []
-    for c in range(copies):
-        e = events.copy()
-        e["t"] += c * span
-        parts.append(e)
-    return np.concatenate(parts)
-
-
-def least(fn, repeat):
-    fn()
-    best = np.inf
-    for _ in range(repeat):
-        c = time.thread_time()
-        fn()
-        best = min(best, time.thread_time() - c)
-    return best
 
 
 def main(argv=None) -> int:
