@@ -435,10 +435,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evedge._validate import check_bool, check_positive, check_real
+from evedge._validate import check_bool, check_integer, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
+from ._intra_kernels import _FIT_STRIDE, _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .fill import ARRIVAL, NeighbourFill, check_fill
@@ -635,7 +635,7 @@ class IntraParams:
     lifetime_agreement: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
-    burst_reuse: bool = False
+    burst_reuse: int = 0
     fill_neighbours: int = 0
     fill_tolerance: float = 0.5
     fill_agreement: float = 1.5
@@ -684,9 +684,10 @@ class IntraParams:
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check",
-                     "burst_reuse"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
             check_bool(own, name, getattr(self, name))
+        check_integer(own, "burst_reuse", self.burst_reuse)
+        check_positive(own, "burst_reuse", self.burst_reuse, integer=True, allow_zero=True)
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px",
                      "refine_window", "fill_neighbours"):
             object.__setattr__(self, name, int(getattr(self, name)))
@@ -816,8 +817,9 @@ class IntraPixelLifetime:
         self._prev_t = np.zeros(self.sae.times_us.size, dtype=np.int64)
         self._prev_lt = np.full(self.sae.times_us.size, np.nan)
         self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
-        # burst reuse: the plane (a, b) of each pixel's current burst, NaN = none; empty = off
-        self._prev_fit = np.full(2 * self.sae.times_us.size if self.params.burst_reuse else 0, np.nan)
+        # burst reuse: the plane (a, b) of each pixel's current burst (NaN = none) and its count of fits; empty = off
+        self._prev_fit = np.full(_FIT_STRIDE * self.sae.times_us.size if self.params.burst_reuse else 0, np.nan)
+        self._prev_fit[2::_FIT_STRIDE] = 0.0
         self._n_seen = 0
         self._last_time: int | None = None
         self._t_start: int | None = None  # the first event's time (start-up rule)
@@ -850,7 +852,8 @@ class IntraPixelLifetime:
                 pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
                 pr.startup_reach * (pr.window_size // 2), noise_args(pr),  # options off as None: not compiled
                 pr.ls_first,  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
-                pr.window_size // 2 if pr.refine_window else None)  # the ring refit: off as None, not compiled
+                pr.window_size // 2 if pr.refine_window else None,  # the ring refit: off as None, not compiled
+                pr.burst_reuse)
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]

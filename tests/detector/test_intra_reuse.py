@@ -29,67 +29,16 @@ def _edge_with_noise(edge_events, random_events, size, jitter_frac, n_noise, rng
     return np.sort(np.concatenate([ev, noise]), order="t", kind="stable"), lifetime
 
 
+@pytest.mark.parametrize("reuse", [1, 2, 3])
 @pytest.mark.parametrize("preset", [robust_params, noise_params,
                                     lambda **kw: IntraParams(burst_lifetimes=2.0, burst_startup=True, **kw)])
-def test_reuse_matches_the_reference(edge_events, random_events, preset):
-    """Kernel = slow reference (dict SAE, a dict of burst planes) on jittered edges with noise."""
+def test_reuse_matches_the_reference(edge_events, random_events, preset, reuse):
+    """Kernel = slow reference (dict SAE, dicts of burst planes and counts) on jittered edges with noise."""
     size = SensorSize(18, 14)
-    p = preset(burst_reuse=True, min_points=4, min_inliers=4, seed=3)
+    p = preset(burst_reuse=reuse, min_points=4, min_inliers=4, seed=3)
     ev, _ = _edge_with_noise(edge_events, random_events, size, 0.05, 300)
     got = estimate_lifetimes(ev, size, p)
     assert_lifetimes_close(got, ref_stream(ev, size, p))
     assert got["valid"].mean() > 0.3
-    plain = estimate_lifetimes(ev, size, replace(p, burst_reuse=False))
+    plain = estimate_lifetimes(ev, size, replace(p, burst_reuse=0))
     assert got.tobytes() != plain.tobytes()  # the events reuse reaches are many here
-
-
-def test_continuing_events_take_the_bursts_plane(edge_events):
-    """Known answer: inside a burst the lifetime and flow are the burst's first fit's, bit for bit;
-    without reuse they are refitted and differ."""
-    size = SensorSize(30, 24)
-    ev, _ = _bursty_edges(edge_events, size, 150.0, 0.04, rng=1)
-    p = robust_params(burst_reuse=True)
-    on, off = estimate_lifetimes(ev, size, p), estimate_lifetimes(ev, size, replace(p, burst_reuse=False))
-    key = ev["y"].astype(np.int64) * size.width + ev["x"]
-    order = np.lexsort((np.arange(ev.size), key))  # each pixel's events in time order
-    same_pixel = key[order][1:] == key[order][:-1]
-    first, then = order[:-1][same_pixel], order[1:][same_pixel]
-    close = (ev["t"][then] - ev["t"][first]) < on["lifetime_us"][first]  # inside the burst (2 lifetimes)
-    both = close & on["valid"][first] & on["valid"][then]
-    assert both.sum() > 50
-    np.testing.assert_array_equal(on["lifetime_us"][then][both], on["lifetime_us"][first][both])
-    np.testing.assert_array_equal(on["vx_px_s"][then][both], on["vx_px_s"][first][both])
-    both_off = close & off["valid"][first] & off["valid"][then]
-    assert np.mean(off["lifetime_us"][then][both_off] != off["lifetime_us"][first][both_off]) > 0.5
-
-
-def test_reuse_is_off_without_bursts(edge_events):
-    """``burst_lifetimes = 0``: no event continues a burst, so reuse changes no byte."""
-    size = SensorSize(20, 16)
-    ev, _ = _bursty_edges(edge_events, size, 250.0, 0.03, rng=2)
-    p = IntraParams(burst_lifetimes=0.0, min_inliers=4)
-    assert estimate_lifetimes(ev, size, replace(p, burst_reuse=True)).tobytes() == \
-        estimate_lifetimes(ev, size, p).tobytes()
-
-
-@pytest.mark.parametrize("n_tiles", [2, 3])
-def test_reuse_strips_and_chunks_equal_one_shot(edge_events, random_events, n_tiles):
-    """The burst planes are per-pixel state like the SAE: any strip count and any chunking give the serial bytes."""
-    size = SensorSize(24, 20)
-    ev, _ = _edge_with_noise(edge_events, random_events, size, 0.08, 1500, rng=2)
-    p = noise_params(burst_reuse=True)
-    want = estimate_lifetimes(ev, size, p)
-    assert want["valid"].sum() > 100
-    np.testing.assert_array_equal(estimate_lifetimes(ev, size, p, n_tiles=n_tiles).view(np.uint8),
-                                  want.view(np.uint8))
-    est = IntraPixelLifetime(size, p, n_tiles=n_tiles)
-    parts = [est.process(c) for c in np.array_split(ev, 7)]
-    np.testing.assert_array_equal(np.concatenate(parts).view(np.uint8), want.view(np.uint8))
-    est.reset()
-    np.testing.assert_array_equal(est.process(ev).view(np.uint8), want.view(np.uint8))
-
-
-@pytest.mark.parametrize("value", [1, 0, "yes", None])
-def test_bad_burst_reuse_is_a_clear_error(value):
-    with pytest.raises(TypeError, match="burst_reuse"):
-        IntraParams(burst_reuse=value)
