@@ -778,8 +778,9 @@ def _burst_refit(wf, wi, n, a0, b0, delta, thr_us, thr_rel, min_inliers, interce
     ``wi[_INL]`` marks them); with at least ``min_inliers`` (current event
     included) the least-squares refit on them and the current event, as
     :func:`_fit_points`' refit (``intercept``), and its rules (flat or non-finite
-    plane, ``on_plane``, the noise rule's newer points). Returns ``(ok, a, b)``;
-    not ok: the caller fits the window as usual.
+    plane, ``on_plane``, the noise rule's newer points). Returns ``(ok, a, b,
+    inliers)`` (the current event included); not ok: the caller fits the window
+    as usual.
     """
     slack = delta * (abs(a0) + abs(b0))
     thr = thr_us + thr_rel * math.sqrt(a0 * a0 + b0 * b0)
@@ -814,7 +815,7 @@ def _burst_refit(wf, wi, n, a0, b0, delta, thr_us, thr_rel, min_inliers, interce
         sxt += xq * wf[_DT, i]
         syt += yq * wf[_DT, i]
     if cnt < min_inliers or cnt < 3:
-        return False, np.nan, np.nan
+        return False, np.nan, np.nan, cnt
     on = True
     if on_plane is not None:
         on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt,
@@ -827,18 +828,18 @@ def _burst_refit(wf, wi, n, a0, b0, delta, thr_us, thr_rel, min_inliers, interce
         syt -= sy * st / s1
     det = sxx * syy - sxy * sxy
     if not det > 1e-9 * (sxx * syy):
-        return False, np.nan, np.nan
+        return False, np.nan, np.nan, cnt
     a = (sxt * syy - syt * sxy) / det
     b = (syt * sxx - sxt * sxy) / det
     if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b) or not on:
-        return False, np.nan, np.nan
+        return False, np.nan, np.nan, cnt
     if noise is not None:
         newer = noise[_NEWER]
         if newer < 1.0:
             c = _newer_count(wf, _DX, _DY, _DT, n, a, b, delta, thr_us, thr_rel)
             if c > newer * (c + cnt - 1):
-                return False, np.nan, np.nan
-    return True, a, b
+                return False, np.nan, np.nan, cnt
+    return True, a, b, cnt
 
 
 @njit(cache=True)
@@ -846,7 +847,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
                   t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None,
-                  reuse=0, fits=None):
+                  reuse=0, reuse_warm=True, reuse_inliers=0, fits=None):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -953,6 +954,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         fs = _FIT_STRIDE * si
         reused = False  # burst reuse: the stored plane taken, no fit
         warm = False  # burst reuse: the warm refit gave the estimate
+        n_inl = 0  # burst reuse: the warm refit's inliers (current event included)
         gathered = False  # the window at the burst's first time is in wf, wi already
         if use_fits and cont and not math.isnan(fits[fs]):
             tk = sae[si]  # the burst's first time, as a continuing event's fit
@@ -961,11 +963,11 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 ok = True
                 a = fits[fs]
                 b = fits[fs + 1]
-            else:
+            elif reuse_warm:
                 n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, _NEVER)
                 gathered = True
-                ok, a, b = _burst_refit(wf, wi, n, fits[fs], fits[fs + 1], delta, thr_us, thr_rel, min_inliers,
-                                        intercept, on_plane, noise)
+                ok, a, b, n_inl = _burst_refit(wf, wi, n, fits[fs], fits[fs + 1], delta, thr_us, thr_rel,
+                                               min_inliers, intercept, on_plane, noise)
                 warm = ok
                 if refine is not None:
                     if ok:
@@ -1007,8 +1009,15 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 ok = _lifetime_agrees(wf, wi, n, _DX, _DY, _INL, _CA, prev_lt, base, xk, yk, width,
                                       math.sqrt(a * a + b * b), agree)
         if use_fits and not reused:
-            # burst reuse: an estimate stores its plane and counts, unless it is the fallback's
+            # burst reuse: an estimate stores its plane and counts, unless it is the fallback's or has
+            # fewer than reuse_inliers inliers (current event included; the fit's window, the ring aside)
             keep_fit = ok and (warm or wi[_CV, _FB] == 0)
+            if keep_fit and reuse_inliers > 0:
+                if not warm:
+                    n_inl = 1
+                    for i in range(n):
+                        n_inl += wi[_INL, i]
+                keep_fit = n_inl >= reuse_inliers
             fits[fs] = a if keep_fit else np.nan
             fits[fs + 1] = b if keep_fit else np.nan
             if cont:

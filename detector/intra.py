@@ -636,6 +636,8 @@ class IntraParams:
     ls_first: float = 0.5
     refine_window: int = 0
     burst_reuse: int = 0
+    burst_warm_refit: bool = True
+    burst_reuse_inliers: int = 0
     fill_neighbours: int = 0
     fill_tolerance: float = 0.5
     fill_agreement: float = 1.5
@@ -684,10 +686,12 @@ class IntraParams:
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
-        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check"):
+        for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check",
+                     "burst_warm_refit"):
             check_bool(own, name, getattr(self, name))
-        check_integer(own, "burst_reuse", self.burst_reuse)
-        check_positive(own, "burst_reuse", self.burst_reuse, integer=True, allow_zero=True)
+        for name in ("burst_reuse", "burst_reuse_inliers"):
+            check_integer(own, name, getattr(self, name))
+            check_positive(own, name, getattr(self, name), integer=True, allow_zero=True)
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px",
                      "refine_window", "fill_neighbours"):
             object.__setattr__(self, name, int(getattr(self, name)))
@@ -853,7 +857,7 @@ class IntraPixelLifetime:
                 pr.startup_reach * (pr.window_size // 2), noise_args(pr),  # options off as None: not compiled
                 pr.ls_first,  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
                 pr.window_size // 2 if pr.refine_window else None,  # the ring refit: off as None, not compiled
-                pr.burst_reuse)
+                pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers)  # burst reuse (then its plane array)
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]

@@ -289,13 +289,13 @@ def ref_stream(events, size, p: IntraParams):
         warm = False
         if reused:  # burst reuse: the burst's plane; no fit, no fit rule
             ok, (a, b) = True, stored
-        elif stored is not None:  # burst reuse: a warm refit on the stored plane, else the usual fit
+        elif stored is not None and p.burst_warm_refit:  # burst reuse: a warm refit on the stored plane, else a fit
             ok, a, b = warm_refit(sae[key], *stored)
             warm = ok
             if not ok:
                 ok, a, b = fit(sae[key])
         elif cont or trial:
-            ok, a, b = fit(sae[key])  # fitted at the burst's first time
+            ok, a, b = fit(sae[key])  # fitted at the burst's first time (a burst without stored plane: refitted)
             if trial:
                 lt_fit = math.hypot(a, b)
                 if ok and t_ev - pt <= burst * lt_fit and (not span or t_ev - sae[key] <= span * lt_fit):
@@ -313,7 +313,7 @@ def ref_stream(events, size, p: IntraParams):
                 lt_fit, k = math.hypot(a, b), p.lifetime_agreement
                 ok = lt_fit <= k * med and lt_fit * k >= med
         if p.burst_reuse and not reused:  # an estimate stores its plane and counts, unless it is the fallback's
-            keep_fit = ok and (warm or not info["fallback"])
+            keep_fit = ok and (warm or not info["fallback"]) and 1 + len(inliers) >= p.burst_reuse_inliers
             fits[key] = (a, b) if keep_fit else None
             counts[key] = (counts.get(key, 0) if cont else 0) + keep_fit
         lt = math.sqrt(a * a + b * b) if ok else math.nan
