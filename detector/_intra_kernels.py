@@ -908,18 +908,20 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     Burst reuse (``reuse = k > 0``; ``fits``, float64 of :data:`_FIT_STRIDE` per SAE
     cell: ``a, b`` of the plane stored for the pixel's current burst, NaN = none,
     and the count of fits the burst has stored): an event that continues its
-    pixel's burst, whose burst holds a plane, refits warm while the burst has
-    stored fewer than ``k`` fits (:func:`_burst_refit` on the window at the burst's
-    first time, then the ring refit and ``lifetime_agreement`` as after a fit;
-    when it gives none, the usual fit, on the same gathered window), and from
-    the ``k``-th on takes the stored plane (its lifetime and flow) with no fit
-    and no fit rule; the reporting rules (border, start-up) run as always. An
-    event that starts a burst, or whose burst holds no plane, is fitted as
-    usual. Every fit or warm refit with an estimate stores its plane and counts
-    (the count restarts at 1 with a new burst), except a fit of the fallback on
-    all points (``wi[_CV, _FB]``), which, as a fit without estimate, clears the
-    plane: the burst's next event is fitted again. ``reuse = 0`` (or empty
-    ``fits``): off, the same bytes as without.
+    pixel's burst, whose burst holds a plane, is refitted while the burst has
+    stored fewer than ``k`` fits, and from the ``k``-th on takes the stored plane
+    (its lifetime and flow) with no fit and no fit rule; the reporting rules
+    (border, start-up) run as always. The refit is warm with ``reuse_warm``
+    (:func:`_burst_refit` on the window at the burst's first time, then the ring
+    refit and ``lifetime_agreement`` as after a fit; when it gives none, the
+    usual fit on the same gathered window), else the usual fit. An event that
+    starts a burst, or whose burst holds no plane, is fitted as usual. Every fit
+    or warm refit with an estimate stores its plane and counts (the count
+    restarts with a new burst), except a fit of the fallback on all points
+    (``wi[_CV, _FB]``) and one with fewer than ``reuse_inliers`` inliers (current
+    event included; the fit's window, the ring aside), which, as a fit without
+    estimate, clear the plane: the burst's next event is fitted again.
+    ``reuse = 0`` (or empty ``fits``): off, the same bytes as without.
     """
     log_fail = _log_fail(stop_prob)
     use_fits = False

@@ -368,6 +368,81 @@ history is the start's), slow high-contrast stripes (20 degrees, 10 px/s, r = 3)
 -> 6.69 / 11.87 ms (model-free 6.6 / 11.6). The strips' halo is the ring's radius (the
 events read that far).
 
+Burst reuse (``burst_reuse``, default 0 = off, every event fitted; with
+``burst_warm_refit`` and ``burst_reuse_inliers``). The events of one passage of the edge
+at a pixel (a burst, ``burst_lifetimes``) share one lifetime, so a continuing event may
+take the burst's plane instead of fitting its window again: the estimator's cost
+(issue 12) then falls with the share of continuing events (``stripes.mat`` ~47 % of
+the kept events, simulated ``shapes_translation`` ~79 %). Taking the burst's first
+fit for all its events (``2a1c4b7``) is not neutral: quick grid (``benchmarks/
+robustness_grid.py --quick --preset P --buffer-preset line --workers 1 --intra
+burst_reuse=...``, medians over the cells, median error / > 2x off / estimated),
+defaults: clean r >= 3 1.39 -> 1.73 %, 1.45 -> 1.85 %, first 0.1 s 2.18 -> 2.86 %;
+noisy 5.36 -> 5.36 %, 5.52 -> 6.08 %, 93.6 -> 94.5 %; ``noise_params()``: clean r >= 3
+> 2x 0.24 -> 0.46 %, noisy median 1.90 -> 2.11 %, estimated 73.9 -> 82.1 %, noise
+given a lifetime 6.84 -> 7.04 %. Two causes. (1) The > 2x share: a fit of
+``fallback_all_points`` (the current passage's cluster degenerate, RANSAC on all the
+window's points, often a plane through the previous passage ~10x too steep, e.g. at
+the sensor's border where the clipped window holds two current points) is wrong for
+the one event without reuse, and the burst's next events refit right once their
+neighbours have fired (clean stripes 20 degrees, 200 px/s, r = 5: 376 steady-state
+estimates > 2x off, by the event's index in its burst 146 / 145 / 70 / 13; with
+reuse 589: 146 / 146 / 146 / 132); reuse spreads it over the burst. Such fits are
+never stored (the burst's next event is fitted again). (2) The median error: the
+burst's first event sees only the neighbours behind the edge, its later events see
+the ones that fired since; excluding fallback fits alone leaves clean r >= 3 at
+1.67 % (``burst_reuse = 1``). Hence the refits before reuse: ``burst_reuse = k``
+refits the burst until it stored ``k`` fits. The warm refit (``burst_warm_refit``,
+default) starts from the stored plane: its inliers among the window at the burst's
+first time, least squares, the rules that need no cluster; it costs the gather and
+one pass (no 2-means, trial or compaction) and is better constrained than the
+burst's first fit (more points on the plane).
+
+Quick grid (2026-12-03, load 2.8-4.9; figures 0 -> setting, ``--intra burst_reuse=2``
+(A) and ``--intra burst_reuse=3 --intra burst_warm_refit=false --intra
+burst_reuse_inliers=10`` (B); median error / > 2x off / estimated, noisy also noise
+given a lifetime and cells <= 10 %): defaults, A: clean r >= 3 1.39 -> 1.38 %, 1.45 ->
+1.45 %, first 0.1 s 2.18 -> 1.64 %; clean r < 3 5.07 -> 5.07 %, 3.11 -> 3.05 %, 93.52
+-> 93.55 %; noisy 5.36 -> 5.00 %, 5.52 -> 5.47 %, 93.59 -> 93.85 %, noise 26.30 ->
+26.32 %, 2 -> 2 of 30; intra CPU 2.8 -> 2.2 s. B: 1.39 -> 1.40 %, 1.45 -> 1.45 %; r < 3
+unchanged; noisy 5.36 -> 5.32 %, 5.52 -> 5.52 %, 93.59 -> 93.59 %, 26.30 -> 26.30 %;
+2.8 -> 2.7 s. ``--preset noise``, A: clean r >= 3 0.50 -> 0.51 %, 0.24 -> 0.32 %;
+noisy 1.90 -> 1.97 %, 1.16 -> 1.04 %, 73.89 -> 80.67 %, noise 6.84 -> 7.02 %, 27 -> 26
+of 30 (not neutral: more estimates, more noise given one); B: 0.50 -> 0.51 %, 0.24 ->
+0.25 %; r < 3 unchanged; noisy 1.90 -> 1.93 %, 1.16 -> 1.16 %, 73.89 -> 74.02 %, 6.84
+-> 6.84 %, 27 -> 27; intra CPU 8.3 -> 5.8 (A) / 8.1 s (B). FULL_GRID_PLACEHOLDER
+
+Estimator CPU per kept event (``filter_events`` then :func:`estimate_lifetimes`, the
+settings alternated in one process, best of 5, ``time.process_time``; scratch script,
+not in ``benchmarks/``): SPEED_PLACEHOLDER
+
+Why the noise preset resists: its fit rules reject many continuing events' refits,
+which reuse skips (real ``stripes.mat``, first 150,000 kept events, estimated without ->
+with plain reuse: all rules 55.8 -> 65.8 %; without ``split_gap_ratio`` 60.0 -> 64.0 %;
+without ``newer_share_max`` 63.0 -> 71.0 %; without ``lifetime_agreement`` 59.4 ->
+68.6 %), and the warm refit has no linkage split either (A: ``stripes.mat`` estimated
+57.3 -> 66.1 %). Only full refits with an inlier floor keep the rejections. Also
+measured on the quick grid (same cells and scoring, scratch variants, not kept; defaults
+unless said): plain reuse after k full refits, fallback fits stored: k = 2: clean r >=
+3 1.42 %, > 2x 1.60 %, noisy > 2x 6.02 %; k = 3: 1.40 / 1.57 / 5.39 %; with fallback
+fits not stored and no inlier floor, k = 2: noisy > 2x 5.67 %; ``noise_params()`` with
+``burst_reuse_inliers`` 10 / 12 / 14 at k = 2 (full): noisy median 1.97 / 1.96 / 1.91
+%, noise 6.87 / 6.85 / 6.83 % (14 is neutral, and as slow as no reuse: 0.99x / 1.24x);
+k = 3 (full) without floor: noise 6.89 %; warm k = 2 / 3 with floor 12: noise 6.90 /
+6.94 %; warm k = 2 / 3 also running the linkage split on the window: noise 6.94 / 6.92
+%, clean r >= 3 > 2x 0.32 / 0.31 %. A warm start only when every window point is on
+the stored plane (within ``ls_first`` thresholds, then least squares on all): the
+window almost always holds the previous passage's points, so it fires for 0.3 % /
+14 % of the events (``stripes.mat`` / ``shapes_translation``), no speed. Reuse only
+while the window (count and summed times of its cells) is unchanged since the fit:
+1.06x / 1.23x, and with ``noise_params()`` estimated 73.89 -> 73.72 %. Refit when the
+event is over 0.5 / 1 stored lifetimes after the stored fit: clean r >= 3 1.56 /
+1.69 %, > 2x 1.85 %; refit every second event: 1.51 / 1.57 %; reuse once two
+consecutive fits agree (plane within 5-20 %): 1.42 / 1.56-1.57 % (consecutive fits see
+nearly the same window: they agree whether right or wrong); the stored plane as
+RANSAC's only hypothesis for every continuing event (no reuse): 1.02-1.18x, and with
+``noise_params()`` estimated 73.89 -> 73.69 %, clean r >= 3 > 2x 0.24 -> 0.26 %.
+
 Randomness: trial ``k`` of the event with global index ``g`` (position in the
 stream since the last :meth:`IntraPixelLifetime.reset`) draws
 ``splitmix64(key + 2k)`` and ``splitmix64(key + 2k + 1)`` with
@@ -583,15 +658,38 @@ class IntraParams:
         that read the lifetime may decide a few events differently). 9 in
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
-    burst_reuse : bool
-        With ``burst_lifetimes > 0``: an event that continues its pixel's burst
-        takes the burst's last fit (plane, lifetime, flow) instead of fitting
-        its window again (default False: every event is fitted, as before). A
-        burst is one passage of the edge, so one lifetime; the fit rules
-        (including ``lifetime_agreement``) are not run again, the reporting
-        rules (``border_px``, ``startup_reach``) are. Speed (issue 12): the
-        continuing events are ~half of ``stripes.mat``'s and most of the
-        simulated ones. See the module notes ("burst reuse").
+    burst_reuse : int
+        0 (default): off, every event is fitted (the bytes of before). ``k >= 1``,
+        with ``burst_lifetimes > 0``: an event that continues its pixel's burst,
+        whose burst holds a stored plane, is refitted (``burst_warm_refit``) while
+        the burst has stored fewer than ``k`` fits, and from then on takes the
+        stored plane (lifetime and flow) with no fit. A burst is one passage of
+        the edge, so one lifetime; a reused event runs no fit rule (the
+        noise rules, ``split_gap_ratio``), the reporting rules (``border_px``,
+        ``startup_reach``) run as always. A fit of ``fallback_all_points`` (RANSAC
+        on all points: a degenerate cluster) is never stored, nor one with fewer
+        than ``burst_reuse_inliers`` inliers; the burst's next event is then fitted
+        again. Speed (issue 12): continuing events are ~half of ``stripes.mat``'s
+        and ~3/4 of the simulated ones. Measured neutral against the simulator's
+        truth (module notes, "burst reuse"): 2 with the defaults (estimator
+        ~1.5x / ~2.4x cheaper per kept event on ``stripes.mat`` / simulated
+        ``shapes_translation``), and 3 with ``burst_warm_refit=False,
+        burst_reuse_inliers=10`` with both the defaults and :func:`noise_params`
+        (~1.0x / ~1.4x, ~1.05x / ~1.5x); 2 (warm) is not neutral with
+        :func:`noise_params` (more estimates, noise share up).
+    burst_warm_refit : bool
+        With ``burst_reuse >= 2``: how a burst's events are refitted before its
+        plane is reused. True (default): warm, from the stored plane: its inliers
+        among the window at the burst's first time (the inlier test of a RANSAC
+        candidate) refitted by least squares as a fit's winner, then the rules that
+        need no cluster (``min_inliers``, ``event_on_plane``, the noise rules, the
+        ring refit); no 2-means, no ``split_gap_ratio``, no trial. A warm refit
+        without estimate falls back to the usual fit. False: the usual fit.
+    burst_reuse_inliers : int
+        With ``burst_reuse >= 1``: a fit (or warm refit) is stored, and counts
+        towards ``burst_reuse``, only with at least this many inliers (current
+        event included, in the ``window_size`` window: the ring refit's points
+        aside). 0 (default): any.
     fill_neighbours : int
         0..8. Above 0, after the estimator, an event it left without estimate gets
         the median lifetime of its recent neighbours' estimates (same polarity
