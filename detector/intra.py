@@ -391,37 +391,66 @@ reuse 589: 146 / 146 / 146 / 132); reuse spreads it over the burst. Such fits ar
 never stored (the burst's next event is fitted again). (2) The median error: the
 burst's first event sees only the neighbours behind the edge, its later events see
 the ones that fired since; excluding fallback fits alone leaves clean r >= 3 at
-1.67 % (``burst_reuse = 1``). Hence the refits before reuse: ``burst_reuse = k``
+1.67 % (``burst_reuse = 1, burst_reuse_inliers = 0``). Hence the refits before reuse: ``burst_reuse = k``
 refits the burst until it stored ``k`` fits. The warm refit (``burst_warm_refit``,
 default) starts from the stored plane: its inliers among the window at the burst's
 first time, least squares, the rules that need no cluster; it costs the gather and
 one pass (no 2-means, trial or compaction) and is better constrained than the
 burst's first fit (more points on the plane).
 
-Quick grid (2026-12-03, load 2.8-4.9; figures 0 -> setting, ``--intra burst_reuse=2``
-(A) and ``--intra burst_reuse=3 --intra burst_warm_refit=false --intra
-burst_reuse_inliers=10`` (B); median error / > 2x off / estimated, noisy also noise
-given a lifetime and cells <= 10 %): defaults, A: clean r >= 3 1.39 -> 1.38 %, 1.45 ->
-1.45 %, first 0.1 s 2.18 -> 1.64 %; clean r < 3 5.07 -> 5.07 %, 3.11 -> 3.05 %, 93.52
--> 93.55 %; noisy 5.36 -> 5.00 %, 5.52 -> 5.47 %, 93.59 -> 93.85 %, noise 26.30 ->
-26.32 %, 2 -> 2 of 30; intra CPU 2.8 -> 2.2 s. B: 1.39 -> 1.40 %, 1.45 -> 1.45 %; r < 3
-unchanged; noisy 5.36 -> 5.32 %, 5.52 -> 5.52 %, 93.59 -> 93.59 %, 26.30 -> 26.30 %;
-2.8 -> 2.7 s. ``--preset noise``, A: clean r >= 3 0.50 -> 0.51 %, 0.24 -> 0.32 %;
-noisy 1.90 -> 1.97 %, 1.16 -> 1.04 %, 73.89 -> 80.67 %, noise 6.84 -> 7.02 %, 27 -> 26
-of 30 (not neutral: more estimates, more noise given one); B: 0.50 -> 0.51 %, 0.24 ->
-0.25 %; r < 3 unchanged; noisy 1.90 -> 1.93 %, 1.16 -> 1.16 %, 73.89 -> 74.02 %, 6.84
--> 6.84 %, 27 -> 27; intra CPU 8.3 -> 5.8 (A) / 8.1 s (B). FULL_GRID_PLACEHOLDER
+Settings measured (``--intra burst_reuse=2``: A, warm refits, the default inlier floor
+``burst_reuse_inliers = 10``; A0: A with ``--intra burst_reuse_inliers=0``; B: ``--intra
+burst_reuse=3 --intra burst_warm_refit=false``, full refits, floor 10), figures off ->
+setting, medians over the cells (median error / > 2x off / estimated; noisy also
+noise given a lifetime and cells with it <= 10 %), 2026-12-03, load 1.3-5.7. Quick grid,
+defaults: off clean r >= 3 1.39 / 1.45 / 100 %, first 0.1 s 2.18 %; clean r < 3 5.07 /
+3.11 / 93.52 %; noisy 5.36 / 5.52 / 93.59 %, noise 26.30 %, 2 of 30 cells; intra CPU
+2.8 s. A: 1.41 / 1.45 / 100 %, first 2.13 %; 5.07 / 3.11 / 93.52 %; 5.08 / 5.52 / 93.59
+%, 26.31 %, 2; 2.0 s. A0: 1.38 / 1.45 / 100 %, first 1.64 %; 5.07 / 3.05 / 93.55 %; 5.00
+/ 5.47 / 93.85 %, 26.32 %, 2; 2.2 s. B: 1.40 / 1.45 / 100 %, first 2.19 %; r < 3
+unchanged; 5.32 / 5.52 / 93.59 %, 26.30 %, 2; 2.7 s. Quick grid, ``--preset noise``: off
+0.50 / 0.24 / 97.57 %; 1.56 / 0.00 / 71.96 %; 1.90 / 1.16 / 73.89 %, noise 6.84 %, 27 of
+30; 8.3 s. A: 0.51 / 0.25 / 97.76 %; 1.56 / 0.00 / 72.01 %; 1.95 / 0.95 / 78.39 %, 6.92 %,
+26; 6.1 s. A0: 0.51 / 0.32 / 97.77 %; 1.56 / 0.00 / 72.03 %; 1.97 / 1.04
+/ 80.67 %, 7.02 %, 26; 5.8 s. B: 0.51 / 0.25 / 97.64 %; r < 3 unchanged; 1.93 / 1.16 /
+74.02 %, 6.84 %, 27; 8.1 s. Full grid (96x72, 210 cells, the same commands without
+``--quick``), defaults: off 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 / 4.57 / 88.53 %;
+4.43 / 4.26 / 94.96 %, 26.81 %, 14 of 100; 15.7 s. A: 1.83 / 0.87 / 100 %, first 2.70
+%; 5.28 / 4.57 / 88.51 %; 4.42 / 4.23 / 94.99 %, 26.81 %, 14; 14.4 s. A0: 1.83 / 0.87 /
+100 %, first 2.88 %; 5.28 / 4.35 / 89.53 %; 4.41 / 4.39 / 95.30 %, 26.84 %, 14; 13.7 s
+(the noisy > 2x median +0.13 points; over the 100 noisy cells its mean -0.20 points, 48
+cells up, 41 down; A0 with k = 3: 4.38 %). B: 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 /
+4.57 / 88.53 %; 4.43 / 4.25 / 94.97 %, 26.81 %, 14; 13.9 s. Full grid, ``--preset
+noise``: off 0.78 / 0.04 / 98.79 %; 1.68 / 0.01 / 72.38 %; 1.87 / 0.44 / 79.07 %, 6.83
+%, 92 of 100; 51.3 s (3.7 s of it compilation in the first cell). B: the same figures
+except noisy estimated 79.09 %; 46.1 s. A0: 0.79 / 0.04 / 98.79 %; r < 3 unchanged;
+1.86 / 0.38 / 82.84 %, 7.06 %, 88; 30.3 s. So A is neutral with the defaults and B with
+both presets (within 0.03 points everywhere, on both grids); A0 is neutral on the quick
+grid only; with ``noise_params()`` every warm setting gives more estimates (+3.8 to
++6.8 points in the noisy cells) and more noise events a lifetime (+0.06 to +0.2 points).
 
 Estimator CPU per kept event (``filter_events`` then :func:`estimate_lifetimes`, the
 settings alternated in one process, best of 5, ``time.process_time``; scratch script,
-not in ``benchmarks/``): SPEED_PLACEHOLDER
+not in ``benchmarks/``; 2026-12-03 09:36 UTC, load 1.2-1.7), ``stripes.mat`` /
+simulated ``shapes_translation`` (2 s): defaults off 908 / 477 ns; A 686 / 280 ns (1.32x
+/ 1.71x); A0 613 / 213 ns (1.48x / 2.24x); B 873 / 362 ns (1.04x / 1.32x);
+``burst_reuse = 1`` with floor 0 (reuse after the first stored fit) 558 / 170 ns (1.63x
+/ 2.80x). A run at load 4.3-5.5: A 1.16x / 1.72x, A0 1.30x / 2.20x, B 0.92x / 1.34x.
+``noise_params()``: off 3652 / 2631 ns; B 3804 / 1702 ns (0.96x / 1.55x); A (not
+neutral there) 2684 / 883 ns (1.36x / 2.98x). Estimated on ``stripes.mat``: defaults
+96.12 % -> A 96.14, A0 96.31, B 96.12 %; ``noise_params()`` 57.29 % -> B 57.69, A 65.04
+%. Of ``stripes.mat``'s kept events with A0 22 % take a stored plane, 23 % are warm
+refits (0.2 % of them fail and are fitted), 55 % are fitted (bursts' first events,
+bursts without plane); ``shapes_translation`` 57 / 19 / 24 %. On ``stripes.mat`` A0
+reaches nearly the bound of reuse after the first fit: the bursts' first fits are most
+of the cost.
 
 Why the noise preset resists: its fit rules reject many continuing events' refits,
 which reuse skips (real ``stripes.mat``, first 150,000 kept events, estimated without ->
 with plain reuse: all rules 55.8 -> 65.8 %; without ``split_gap_ratio`` 60.0 -> 64.0 %;
 without ``newer_share_max`` 63.0 -> 71.0 %; without ``lifetime_agreement`` 59.4 ->
-68.6 %), and the warm refit has no linkage split either (A: ``stripes.mat`` estimated
-57.3 -> 66.1 %). Only full refits with an inlier floor keep the rejections. Also
+68.6 %), and the warm refit has no linkage split either (``stripes.mat`` estimated
+57.3 -> 65.0 % with A, 66.1 % with A0). Only full refits with an inlier floor keep the rejections. Also
 measured on the quick grid (same cells and scoring, scratch variants, not kept; defaults
 unless said): plain reuse after k full refits, fallback fits stored: k = 2: clean r >=
 3 1.42 %, > 2x 1.60 %, noisy > 2x 6.02 %; k = 3: 1.40 / 1.57 / 5.39 %; with fallback
@@ -671,12 +700,12 @@ class IntraParams:
         than ``burst_reuse_inliers`` inliers; the burst's next event is then fitted
         again. Speed (issue 12): continuing events are ~half of ``stripes.mat``'s
         and ~3/4 of the simulated ones. Measured neutral against the simulator's
-        truth (module notes, "burst reuse"): 2 with the defaults (estimator
-        ~1.5x / ~2.4x cheaper per kept event on ``stripes.mat`` / simulated
-        ``shapes_translation``), and 3 with ``burst_warm_refit=False,
-        burst_reuse_inliers=10`` with both the defaults and :func:`noise_params`
-        (~1.0x / ~1.4x, ~1.05x / ~1.5x); 2 (warm) is not neutral with
-        :func:`noise_params` (more estimates, noise share up).
+        truth on the quick and full grids (module notes, "burst reuse"): 2 with
+        the defaults (estimator 1.2-1.3x / 1.7x cheaper per kept event on
+        ``stripes.mat`` / simulated ``shapes_translation``), and 3 with
+        ``burst_warm_refit=False`` with both the defaults (1.0x / 1.3x) and
+        :func:`noise_params` (1.0x / 1.55x); with :func:`noise_params` the warm
+        refits are not neutral (more estimates, more noise given a lifetime).
     burst_warm_refit : bool
         With ``burst_reuse >= 2``: how a burst's events are refitted before its
         plane is reused. True (default): warm, from the stored plane: its inliers
@@ -689,7 +718,9 @@ class IntraParams:
         With ``burst_reuse >= 1``: a fit (or warm refit) is stored, and counts
         towards ``burst_reuse``, only with at least this many inliers (current
         event included, in the ``window_size`` window: the ring refit's points
-        aside). 0 (default): any.
+        aside). Default 10 (twice the default ``min_inliers``; measured with the
+        5 x 5 window); 0: any (faster, but not neutral on the full grid, module
+        notes).
     fill_neighbours : int
         0..8. Above 0, after the estimator, an event it left without estimate gets
         the median lifetime of its recent neighbours' estimates (same polarity
@@ -735,7 +766,7 @@ class IntraParams:
     refine_window: int = 0
     burst_reuse: int = 0
     burst_warm_refit: bool = True
-    burst_reuse_inliers: int = 0
+    burst_reuse_inliers: int = 10
     fill_neighbours: int = 0
     fill_tolerance: float = 0.5
     fill_agreement: float = 1.5
