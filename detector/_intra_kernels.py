@@ -966,14 +966,15 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 a = fits[fs]
                 b = fits[fs + 1]
             elif reuse_warm:
-                n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, _NEVER)
+                oldest = np.int64(_NEVER)  # typed as the fit's below: one specialisation of _gather and _refine
+                n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, oldest)
                 gathered = True
                 ok, a, b, n_inl = _burst_refit(wf, wi, n, fits[fs], fits[fs + 1], delta, thr_us, thr_rel,
                                                min_inliers, intercept, on_plane, noise)
                 warm = ok
                 if refine is not None:
                     if ok:
-                        a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, _NEVER, a, b, delta,
+                        a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
                                        thr_us, thr_rel, intercept)
         for attempt in range(0 if ok else 2):
             if cont or trial:
