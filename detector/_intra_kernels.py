@@ -83,6 +83,8 @@ _LOG_TABLE_MAX = 121
 
 #: Candidate planes computed together (their chains of dependent operations overlap).
 _BATCH = 4
+_FB = _BATCH  # wi[_CV, _FB] (after the batch's slots): 1 when the last fit ran the fallback on all points
+_FIT_STRIDE = 3  # burst reuse: per SAE cell a, b of the burst's stored plane and the burst's count of fits
 
 #: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
 _EXACT_SUM = 2**53
@@ -269,6 +271,8 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
     refit runs on all points (the same sums, same order, as the refit of a winner
     with every point an inlier).
 
+    ``wi[_CV, _FB]`` is 1 when the result comes from the fallback on all points, else 0.
+
     ``gap_ratio`` and ``on_plane`` may be None, the same as 0 (off): numba then
     prunes their branches when it compiles, so a run without these options
     never compiles :func:`_linkage_split` and :func:`_event_on_plane`
@@ -345,10 +349,12 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
 
     # ---- RANSAC on the kept cluster; a second attempt on all points when it is degenerate
     nin = -1
+    wi[_CV, _FB] = 0
     for attempt in range(2):
         if attempt == 1:
             if nin >= 0 or not fallback:
                 break
+            wi[_CV, _FB] = 1  # burst reuse stores no fallback fit (:func:`_intra_stream`)
             for i in range(n):
                 wi[_LAB, i] = 1
         m = 0
@@ -763,11 +769,85 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
 
 
 @njit(cache=True)
+def _burst_refit(wf, wi, n, a0, b0, delta, thr_us, thr_rel, min_inliers, intercept, on_plane, noise):
+    """Burst reuse's warm refit: the stored plane ``dt = a0 dx + b0 dy``'s inliers among the window, least squares.
+
+    The ``n`` window points are ``wf[_DX/_DY/_DT, :n]`` (as for :func:`_fit_points`,
+    no 2-means, no trial). A point is an inlier of the stored plane as of a RANSAC
+    candidate (residual less the intra-pixel slack within the inlier threshold;
+    ``wi[_INL]`` marks them); with at least ``min_inliers`` (current event
+    included) the least-squares refit on them and the current event, as
+    :func:`_fit_points`' refit (``intercept``), and its rules (flat or non-finite
+    plane, ``on_plane``, the noise rule's newer points). Returns ``(ok, a, b,
+    inliers)`` (the current event included); not ok: the caller fits the window
+    as usual.
+    """
+    slack = delta * (abs(a0) + abs(b0))
+    thr = thr_us + thr_rel * math.sqrt(a0 * a0 + b0 * b0)
+    s1 = 1.0
+    sx = 0.0
+    sy = 0.0
+    st = 0.0
+    sxx = 0.0
+    sxy = 0.0
+    syy = 0.0
+    sxt = 0.0
+    syt = 0.0
+    cnt = 1
+    for i in range(n):
+        r = abs(wf[_DT, i] - (a0 * wf[_DX, i] + b0 * wf[_DY, i])) - slack
+        r = max(r, 0.0)
+        inl = 1 if r <= thr else 0
+        wi[_INL, i] = inl
+        cnt += inl
+        # branch-free: a weight of 0 or 1 (adding 0.0 changes no sum)
+        wq = float(inl)
+        xq = wf[_DX, i] * wq
+        yq = wf[_DY, i] * wq
+        tq = wf[_DT, i] * wq
+        s1 += wq
+        sx += xq
+        sy += yq
+        st += tq
+        sxx += xq * wf[_DX, i]
+        sxy += xq * wf[_DY, i]
+        syy += yq * wf[_DY, i]
+        sxt += xq * wf[_DT, i]
+        syt += yq * wf[_DT, i]
+    if cnt < min_inliers or cnt < 3:
+        return False, np.nan, np.nan, cnt
+    on = True
+    if on_plane is not None:
+        on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt,
+                                                                  delta, thr_us, thr_rel, on_plane)
+    if intercept:
+        sxx -= sx * sx / s1
+        sxy -= sx * sy / s1
+        syy -= sy * sy / s1
+        sxt -= sx * st / s1
+        syt -= sy * st / s1
+    det = sxx * syy - sxy * sxy
+    if not det > 1e-9 * (sxx * syy):
+        return False, np.nan, np.nan, cnt
+    a = (sxt * syy - syt * sxy) / det
+    b = (syt * sxx - sxt * sxy) / det
+    if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b) or not on:
+        return False, np.nan, np.nan, cnt
+    if noise is not None:
+        newer = noise[_NEWER]
+        if newer < 1.0:
+            c = _newer_count(wf, _DX, _DY, _DT, n, a, b, delta, thr_us, thr_rel)
+            if c > newer * (c + cnt - 1):
+                return False, np.nan, np.nan, cnt
+    return True, a, b, cnt
+
+
+@njit(cache=True)
 def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst, width, height, row0, rows, own_lo,
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
                   t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None,
-                  fits=None):
+                  reuse=0, reuse_warm=True, reuse_inliers=0, fits=None):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -825,19 +905,28 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     :func:`_refine` refits its plane with the points of the window of half-size
     ``half`` on it (``half`` is then the radius the event reads, for the strips).
 
-    Burst reuse (``fits``, float64 of two per SAE cell: ``a, b`` of the last fit of
-    the pixel's current burst, NaN = none; empty or None = off): an event that
-    continues its pixel's burst, whose burst holds a fit, takes that fit (its
-    plane, and so its lifetime and flow) instead of fitting again; the fit rules
-    are not run again (``lifetime_agreement`` included), the reporting rules
-    (border, start-up) are, on the same plane and burst time. Every fit of a
-    burst's event that gives an estimate stores its plane; one that gives none
-    clears it.
+    Burst reuse (``reuse = k > 0``; ``fits``, float64 of :data:`_FIT_STRIDE` per SAE
+    cell: ``a, b`` of the plane stored for the pixel's current burst, NaN = none,
+    and the count of fits the burst has stored): an event that continues its
+    pixel's burst, whose burst holds a plane, is refitted while the burst has
+    stored fewer than ``k`` fits, and from the ``k``-th on takes the stored plane
+    (its lifetime and flow) with no fit and no fit rule; the reporting rules
+    (border, start-up) run as always. The refit is warm with ``reuse_warm``
+    (:func:`_burst_refit` on the window at the burst's first time, then the ring
+    refit and ``lifetime_agreement`` as after a fit; when it gives none, the
+    usual fit on the same gathered window), else the usual fit. An event that
+    starts a burst, or whose burst holds no plane, is fitted as usual. Every fit
+    or warm refit with an estimate stores its plane and counts (the count
+    restarts with a new burst), except a fit of the fallback on all points
+    (``wi[_CV, _FB]``) and one with fewer than ``reuse_inliers`` inliers (current
+    event included; the fit's window, the ring aside), which, as a fit without
+    estimate, clear the plane: the burst's next event is fitted again.
+    ``reuse = 0`` (or empty ``fits``): off, the same bytes as without.
     """
     log_fail = _log_fail(stop_prob)
     use_fits = False
     if fits is not None:
-        use_fits = fits.shape[0] > 0
+        use_fits = reuse > 0 and fits.shape[0] > 0
     fh = half  # the fit's window half-size
     if refine is not None:
         fh = refine
@@ -865,13 +954,30 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         b = np.nan
         n = 0
         fresh = not cont  # the event does not continue its pixel's burst by the rule above (a trial may make it)
-        reused = use_fits and cont and not math.isnan(fits[2 * si])
-        if reused:  # burst reuse: the burst's fit, at the burst's first time
-            tk = sae[si]
-            ok = True
-            a = fits[2 * si]
-            b = fits[2 * si + 1]
-        for attempt in range(0 if reused else 2):
+        fs = _FIT_STRIDE * si
+        reused = False  # burst reuse: the stored plane taken, no fit
+        warm = False  # burst reuse: the warm refit gave the estimate
+        n_inl = 0  # burst reuse: the warm refit's inliers (current event included)
+        gathered = False  # the window at the burst's first time is in wf, wi already
+        if use_fits and cont and not math.isnan(fits[fs]):
+            tk = sae[si]  # the burst's first time, as a continuing event's fit
+            if fits[fs + 2] >= reuse:
+                reused = True
+                ok = True
+                a = fits[fs]
+                b = fits[fs + 1]
+            elif reuse_warm:
+                oldest = np.int64(_NEVER)  # typed as the fit's below: one specialisation of _gather and _refine
+                n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, oldest)
+                gathered = True
+                ok, a, b, n_inl = _burst_refit(wf, wi, n, fits[fs], fits[fs + 1], delta, thr_us, thr_rel,
+                                               min_inliers, intercept, on_plane, noise)
+                warm = ok
+                if refine is not None:
+                    if ok:
+                        a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
+                                       thr_us, thr_rel, intercept)
+        for attempt in range(0 if ok else 2):
             if cont or trial:
                 tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
             else:
@@ -880,7 +986,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             oldest = _NEVER
             if not (cont or trial) and prev_pol[si] == pk:
                 oldest = _stale_cutoff(tk, prev_t[si], prev_lt[si], stale_frac, fh)
-            n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, oldest)
+            if not gathered:  # (a failed warm refit gathered this window: continuing, no cutoff)
+                n = _gather(sae, wf, wi, base, xk, yk, tk, width, rows, fh, oldest)
+            gathered = False
             big = 0
             for i in range(n):
                 big = max(big, abs(wi[_IT, i]))
@@ -909,8 +1017,21 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             if ok and gap_k > 0.0 and fresh and prev_pol[si] == pk:
                 ok = math.sqrt(a * a + b * b) <= gap_k * float(t_ev - prev_t[si])
         if use_fits and not reused:
-            fits[2 * si] = a if ok else np.nan
-            fits[2 * si + 1] = b if ok else np.nan
+            # burst reuse: an estimate stores its plane and counts, unless it is the fallback's or has
+            # fewer than reuse_inliers inliers (current event included; the fit's window, the ring aside)
+            keep_fit = ok and (warm or wi[_CV, _FB] == 0)
+            if keep_fit and reuse_inliers > 0:
+                if not warm:
+                    n_inl = 1
+                    for i in range(n):
+                        n_inl += wi[_INL, i]
+                keep_fit = n_inl >= reuse_inliers
+            fits[fs] = a if keep_fit else np.nan
+            fits[fs + 1] = b if keep_fit else np.nan
+            if cont:
+                fits[fs + 2] += 1.0 if keep_fit else 0.0
+            else:
+                fits[fs + 2] = 1.0 if keep_fit else 0.0
         # border rule: the fit still feeds the burst state below, but is not reported
         # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border

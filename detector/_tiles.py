@@ -70,7 +70,7 @@ from ._checks import NEVER_US
 from ._buffer_kernels import (_buffer_scan, _line_scan, _two_passes, narrow_state, new_line_state, new_state,
                               one_shot_exact)
 from ._edges_kernels import _DX, _DY, _edge_update
-from ._intra_kernels import _intra_stream, _scratch
+from ._intra_kernels import _FIT_STRIDE, _intra_stream, _scratch
 from ._noise_kernels import _AGREE, _BURST_SPAN
 
 
@@ -496,7 +496,7 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
     """
     half = kargs[2]
     n_tiles = lo.shape[0]
-    fo = 2 if fits.shape[0] > 0 else 0  # burst reuse: two values per cell (empty: off)
+    fo = _FIT_STRIDE if fits.shape[0] > 0 else 0  # burst reuse: _FIT_STRIDE values per cell (empty: off)
     busy = np.zeros(n_tiles, np.int64)
     fin = np.zeros(n_tiles, np.int64)
     state = np.zeros((n_tiles, 3), np.int64)
@@ -607,7 +607,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     ``min(n_tiles, numba threads)`` workers (:func:`_intra_parallel`). ``stats`` (int64
     ``(n_tiles, 4)``, or 5 for the strips' CPU time)
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
-    ``fits`` (burst reuse, :func:`_intra_stream`; flat, two per SAE cell; None or empty: off) is
+    ``fits`` (burst reuse, :func:`_intra_stream`; flat, ``_FIT_STRIDE`` per SAE cell; None or empty: off) is
     updated in place as ``state``; only owned pixels read or write it (halo events are not fitted).
     """
     half = kernel_args[2]
@@ -627,7 +627,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     qoff[1:] = np.cumsum(np.full(n_tiles, 1 << max(int(_QUEUE_MAX) - 1, 1).bit_length()))
     reuse = fits is not None and fits.size > 0
     if reuse:
-        state = (*state, fits.reshape(planes, height, 2 * width))
+        state = (*state, fits.reshape(planes, height, _FIT_STRIDE * width))
     local = [np.empty(off[-1] * (l.shape[2] // width), l.dtype) for l in state]
     for s in range(n_tiles):
         for g, l in zip(state, local):

@@ -404,6 +404,110 @@ history is the start's), slow high-contrast stripes (20 degrees, 10 px/s, r = 3)
 -> 6.69 / 11.87 ms (model-free 6.6 / 11.6). The strips' halo is the ring's radius (the
 events read that far).
 
+Burst reuse (``burst_reuse``, default 0 = off, every event fitted; with
+``burst_warm_refit`` and ``burst_reuse_inliers``). The events of one passage of the edge
+at a pixel (a burst, ``burst_lifetimes``) share one lifetime, so a continuing event may
+take the burst's plane instead of fitting its window again: the estimator's cost
+(issue 12) then falls with the share of continuing events (``stripes.mat`` ~47 % of
+the kept events, simulated ``shapes_translation`` ~79 %). Taking the burst's first
+fit for all its events (``2a1c4b7``) is not neutral: quick grid (``benchmarks/
+robustness_grid.py --quick --preset P --buffer-preset line --workers 1 --intra
+burst_reuse=...``, medians over the cells, median error / > 2x off / estimated),
+defaults: clean r >= 3 1.39 -> 1.73 %, 1.45 -> 1.85 %, first 0.1 s 2.18 -> 2.86 %;
+noisy 5.36 -> 5.36 %, 5.52 -> 6.08 %, 93.6 -> 94.5 %; ``noise_params()``: clean r >= 3
+> 2x 0.24 -> 0.46 %, noisy median 1.90 -> 2.11 %, estimated 73.9 -> 82.1 %, noise
+given a lifetime 6.84 -> 7.04 %. Two causes. (1) The > 2x share: a fit of
+``fallback_all_points`` (the current passage's cluster degenerate, RANSAC on all the
+window's points, often a plane through the previous passage ~10x too steep, e.g. at
+the sensor's border where the clipped window holds two current points) is wrong for
+the one event without reuse, and the burst's next events refit right once their
+neighbours have fired (clean stripes 20 degrees, 200 px/s, r = 5: 376 steady-state
+estimates > 2x off, by the event's index in its burst 146 / 145 / 70 / 13; with
+reuse 589: 146 / 146 / 146 / 132); reuse spreads it over the burst. Such fits are
+never stored (the burst's next event is fitted again). (2) The median error: the
+burst's first event sees only the neighbours behind the edge, its later events see
+the ones that fired since; excluding fallback fits alone leaves clean r >= 3 at
+1.67 % (``burst_reuse = 1, burst_reuse_inliers = 0``). Hence the refits before reuse: ``burst_reuse = k``
+refits the burst until it stored ``k`` fits. The warm refit (``burst_warm_refit``,
+default) starts from the stored plane: its inliers among the window at the burst's
+first time, least squares, the rules that need no cluster; it costs the gather and
+one pass (no 2-means, trial or compaction) and is better constrained than the
+burst's first fit (more points on the plane).
+
+Settings measured (``--intra burst_reuse=2``: A, warm refits, the default inlier floor
+``burst_reuse_inliers = 10``; A0: A with ``--intra burst_reuse_inliers=0``; B: ``--intra
+burst_reuse=3 --intra burst_warm_refit=false``, full refits, floor 10), figures off ->
+setting, medians over the cells (median error / > 2x off / estimated; noisy also
+noise given a lifetime and cells with it <= 10 %), 2026-12-03, load 1.3-5.7. Quick grid,
+defaults: off clean r >= 3 1.39 / 1.45 / 100 %, first 0.1 s 2.18 %; clean r < 3 5.07 /
+3.11 / 93.52 %; noisy 5.36 / 5.52 / 93.59 %, noise 26.30 %, 2 of 30 cells; intra CPU
+2.8 s. A: 1.41 / 1.45 / 100 %, first 2.13 %; 5.07 / 3.11 / 93.52 %; 5.08 / 5.52 / 93.59
+%, 26.31 %, 2; 2.0 s. A0: 1.38 / 1.45 / 100 %, first 1.64 %; 5.07 / 3.05 / 93.55 %; 5.00
+/ 5.47 / 93.85 %, 26.32 %, 2; 2.2 s. B: 1.40 / 1.45 / 100 %, first 2.19 %; r < 3
+unchanged; 5.32 / 5.52 / 93.59 %, 26.30 %, 2; 2.7 s. Quick grid, ``--preset noise``: off
+0.50 / 0.24 / 97.57 %; 1.56 / 0.00 / 71.96 %; 1.90 / 1.16 / 73.89 %, noise 6.84 %, 27 of
+30; 8.3 s. A: 0.51 / 0.25 / 97.76 %; 1.56 / 0.00 / 72.01 %; 1.95 / 0.95 / 78.39 %, 6.92 %,
+26; 6.1 s. A0: 0.51 / 0.32 / 97.77 %; 1.56 / 0.00 / 72.03 %; 1.97 / 1.04
+/ 80.67 %, 7.02 %, 26; 5.8 s. B: 0.51 / 0.25 / 97.64 %; r < 3 unchanged; 1.93 / 1.16 /
+74.02 %, 6.84 %, 27; 8.1 s. Full grid (96x72, 210 cells, the same commands without
+``--quick``), defaults: off 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 / 4.57 / 88.53 %;
+4.43 / 4.26 / 94.96 %, 26.81 %, 14 of 100; 15.7 s. A: 1.83 / 0.87 / 100 %, first 2.70
+%; 5.28 / 4.57 / 88.51 %; 4.42 / 4.23 / 94.99 %, 26.81 %, 14; 14.4 s. A0: 1.83 / 0.87 /
+100 %, first 2.88 %; 5.28 / 4.35 / 89.53 %; 4.41 / 4.39 / 95.30 %, 26.84 %, 14; 13.7 s
+(the noisy > 2x median +0.13 points; over the 100 noisy cells its mean -0.20 points, 48
+cells up, 41 down; A0 with k = 3: 4.38 %). B: 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 /
+4.57 / 88.53 %; 4.43 / 4.25 / 94.97 %, 26.81 %, 14; 13.9 s. Full grid, ``--preset
+noise``: off 0.78 / 0.04 / 98.79 %; 1.68 / 0.01 / 72.38 %; 1.87 / 0.44 / 79.07 %, 6.83
+%, 92 of 100; 51.3 s (3.7 s of it compilation in the first cell). B: the same figures
+except noisy estimated 79.09 %; 46.1 s. A0: 0.79 / 0.04 / 98.79 %; r < 3 unchanged;
+1.86 / 0.38 / 82.84 %, 7.06 %, 88; 30.3 s. So A is neutral with the defaults and B with
+both presets (within 0.03 points everywhere, on both grids); A0 is neutral on the quick
+grid only; with ``noise_params()`` every warm setting gives more estimates (+3.8 to
++6.8 points in the noisy cells) and more noise events a lifetime (+0.06 to +0.2 points).
+
+Estimator CPU per kept event (``filter_events`` then :func:`estimate_lifetimes`, the
+settings alternated in one process, best of 5, ``time.process_time``; scratch script,
+not in ``benchmarks/``; 2026-12-03 09:36 UTC, load 1.2-1.7), ``stripes.mat`` /
+simulated ``shapes_translation`` (2 s): defaults off 908 / 477 ns; A 686 / 280 ns (1.32x
+/ 1.71x); A0 613 / 213 ns (1.48x / 2.24x); B 873 / 362 ns (1.04x / 1.32x);
+``burst_reuse = 1`` with floor 0 (reuse after the first stored fit) 558 / 170 ns (1.63x
+/ 2.80x). A run at load 4.3-5.5: A 1.16x / 1.72x, A0 1.30x / 2.20x, B 0.92x / 1.34x.
+``noise_params()``: off 3652 / 2631 ns; B 3804 / 1702 ns (0.96x / 1.55x); A (not
+neutral there) 2684 / 883 ns (1.36x / 2.98x). Estimated on ``stripes.mat``: defaults
+96.12 % -> A 96.14, A0 96.31, B 96.12 %; ``noise_params()`` 57.29 % -> B 57.69, A 65.04
+%. Of ``stripes.mat``'s kept events with A0 22 % take a stored plane, 23 % are warm
+refits (0.2 % of them fail and are fitted), 55 % are fitted (bursts' first events,
+bursts without plane); ``shapes_translation`` 57 / 19 / 24 %. On ``stripes.mat`` A0
+reaches nearly the bound of reuse after the first fit: the bursts' first fits are most
+of the cost.
+
+Why the noise preset resists: its fit rules reject many continuing events' refits,
+which reuse skips (real ``stripes.mat``, first 150,000 kept events, estimated without ->
+with plain reuse: all rules 55.8 -> 65.8 %; without ``split_gap_ratio`` 60.0 -> 64.0 %;
+without ``newer_share_max`` 63.0 -> 71.0 %; without ``lifetime_agreement`` 59.4 ->
+68.6 %), and the warm refit has no linkage split either (``stripes.mat`` estimated
+57.3 -> 65.0 % with A, 66.1 % with A0). Only full refits with an inlier floor keep the rejections. Also
+measured on the quick grid (same cells and scoring, scratch variants, not kept; defaults
+unless said): plain reuse after k full refits, fallback fits stored: k = 2: clean r >=
+3 1.42 %, > 2x 1.60 %, noisy > 2x 6.02 %; k = 3: 1.40 / 1.57 / 5.39 %; with fallback
+fits not stored and no inlier floor, k = 2: noisy > 2x 5.67 %; ``noise_params()`` with
+``burst_reuse_inliers`` 10 / 12 / 14 at k = 2 (full): noisy median 1.97 / 1.96 / 1.91
+%, noise 6.87 / 6.85 / 6.83 % (14 is neutral, and as slow as no reuse: 0.99x / 1.24x);
+k = 3 (full) without floor: noise 6.89 %; warm k = 2 / 3 with floor 12: noise 6.90 /
+6.94 %; warm k = 2 / 3 also running the linkage split on the window: noise 6.94 / 6.92
+%, clean r >= 3 > 2x 0.32 / 0.31 %. A warm start only when every window point is on
+the stored plane (within ``ls_first`` thresholds, then least squares on all): the
+window almost always holds the previous passage's points, so it fires for 0.3 % /
+14 % of the events (``stripes.mat`` / ``shapes_translation``), no speed. Reuse only
+while the window (count and summed times of its cells) is unchanged since the fit:
+1.06x / 1.23x, and with ``noise_params()`` estimated 73.89 -> 73.72 %. Refit when the
+event is over 0.5 / 1 stored lifetimes after the stored fit: clean r >= 3 1.56 /
+1.69 %, > 2x 1.85 %; refit every second event: 1.51 / 1.57 %; reuse once two
+consecutive fits agree (plane within 5-20 %): 1.42 / 1.56-1.57 % (consecutive fits see
+nearly the same window: they agree whether right or wrong); the stored plane as
+RANSAC's only hypothesis for every continuing event (no reuse): 1.02-1.18x, and with
+``noise_params()`` estimated 73.89 -> 73.69 %, clean r >= 3 > 2x 0.24 -> 0.26 %.
+
 Randomness: trial ``k`` of the event with global index ``g`` (position in the
 stream since the last :meth:`IntraPixelLifetime.reset`) draws
 ``splitmix64(key + 2k)`` and ``splitmix64(key + 2k + 1)`` with
@@ -471,10 +575,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evedge._validate import check_bool, check_positive, check_real
+from evedge._validate import check_bool, check_integer, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size, columns
-from ._intra_kernels import _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
+from ._intra_kernels import _FIT_STRIDE, _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, N_NOISE
 from ._tiles import check_n_tiles, intra_tiled
 from .fill import ARRIVAL, NeighbourFill, check_fill
@@ -627,15 +731,40 @@ class IntraParams:
         that read the lifetime may decide a few events differently). 9 in
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
-    burst_reuse : bool
-        With ``burst_lifetimes > 0``: an event that continues its pixel's burst
-        takes the burst's last fit (plane, lifetime, flow) instead of fitting
-        its window again (default False: every event is fitted, as before). A
-        burst is one passage of the edge, so one lifetime; the fit rules
-        (including ``lifetime_agreement``) are not run again, the reporting
-        rules (``border_px``, ``startup_reach``) are. Speed (issue 12): the
-        continuing events are ~half of ``stripes.mat``'s and most of the
-        simulated ones. See the module notes ("burst reuse").
+    burst_reuse : int
+        0 (default): off, every event is fitted (the bytes of before). ``k >= 1``,
+        with ``burst_lifetimes > 0``: an event that continues its pixel's burst,
+        whose burst holds a stored plane, is refitted (``burst_warm_refit``) while
+        the burst has stored fewer than ``k`` fits, and from then on takes the
+        stored plane (lifetime and flow) with no fit. A burst is one passage of
+        the edge, so one lifetime; a reused event runs no fit rule (the
+        noise rules, ``split_gap_ratio``), the reporting rules (``border_px``,
+        ``startup_reach``) run as always. A fit of ``fallback_all_points`` (RANSAC
+        on all points: a degenerate cluster) is never stored, nor one with fewer
+        than ``burst_reuse_inliers`` inliers; the burst's next event is then fitted
+        again. Speed (issue 12): continuing events are ~half of ``stripes.mat``'s
+        and ~3/4 of the simulated ones. Measured neutral against the simulator's
+        truth on the quick and full grids (module notes, "burst reuse"): 2 with
+        the defaults (estimator 1.2-1.3x / 1.7x cheaper per kept event on
+        ``stripes.mat`` / simulated ``shapes_translation``), and 3 with
+        ``burst_warm_refit=False`` with both the defaults (1.0x / 1.3x) and
+        :func:`noise_params` (1.0x / 1.55x); with :func:`noise_params` the warm
+        refits are not neutral (more estimates, more noise given a lifetime).
+    burst_warm_refit : bool
+        With ``burst_reuse >= 2``: how a burst's events are refitted before its
+        plane is reused. True (default): warm, from the stored plane: its inliers
+        among the window at the burst's first time (the inlier test of a RANSAC
+        candidate) refitted by least squares as a fit's winner, then the rules that
+        need no cluster (``min_inliers``, ``event_on_plane``, the noise rules, the
+        ring refit); no 2-means, no ``split_gap_ratio``, no trial. A warm refit
+        without estimate falls back to the usual fit. False: the usual fit.
+    burst_reuse_inliers : int
+        With ``burst_reuse >= 1``: a fit (or warm refit) is stored, and counts
+        towards ``burst_reuse``, only with at least this many inliers (current
+        event included, in the ``window_size`` window: the ring refit's points
+        aside). Default 10 (twice the default ``min_inliers``; measured with the
+        5 x 5 window); 0: any (faster, but not neutral on the full grid, module
+        notes).
     fill_neighbours : int
         0..8. Above 0, after the estimator, an event it left without estimate gets
         the median lifetime of its recent neighbours' estimates (same polarity
@@ -680,7 +809,9 @@ class IntraParams:
     passage_gap: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
-    burst_reuse: bool = False
+    burst_reuse: int = 0
+    burst_warm_refit: bool = True
+    burst_reuse_inliers: int = 10
     fill_neighbours: int = 0
     fill_tolerance: float = 0.5
     fill_agreement: float = 1.5
@@ -731,8 +862,11 @@ class IntraParams:
         if self.seed >= 2**63:
             raise ValueError(f"{own}.seed must be < 2**63, got {self.seed}")
         for name in ("per_polarity", "refit_intercept", "fallback_all_points", "burst_startup", "split_jump_check",
-                     "burst_reuse"):
+                     "burst_warm_refit"):
             check_bool(own, name, getattr(self, name))
+        for name in ("burst_reuse", "burst_reuse_inliers"):
+            check_integer(own, name, getattr(self, name))
+            check_positive(own, name, getattr(self, name), integer=True, allow_zero=True)
         for name in ("window_size", "max_trials", "min_points", "min_inliers", "seed", "border_px",
                      "refine_window", "fill_neighbours"):
             object.__setattr__(self, name, int(getattr(self, name)))
@@ -866,8 +1000,9 @@ class IntraPixelLifetime:
         self._prev_t = np.zeros(self.sae.times_us.size, dtype=np.int64)
         self._prev_lt = np.full(self.sae.times_us.size, np.nan)
         self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
-        # burst reuse: the plane (a, b) of each pixel's current burst, NaN = none; empty = off
-        self._prev_fit = np.full(2 * self.sae.times_us.size if self.params.burst_reuse else 0, np.nan)
+        # burst reuse: the plane (a, b) of each pixel's current burst (NaN = none) and its count of fits; empty = off
+        self._prev_fit = np.full(_FIT_STRIDE * self.sae.times_us.size if self.params.burst_reuse else 0, np.nan)
+        self._prev_fit[2::_FIT_STRIDE] = 0.0
         self._n_seen = 0
         self._last_time: int | None = None
         self._t_start: int | None = None  # the first event's time (start-up rule)
@@ -917,7 +1052,8 @@ class IntraPixelLifetime:
                 pr.stale_fraction, self._t_start if pr.startup_reach > 0 else _NEVER,
                 pr.startup_reach * (pr.window_size // 2), noise_args(pr),  # options off as None: not compiled
                 pr.ls_first,  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
-                pr.window_size // 2 if pr.refine_window else None)  # the ring refit: off as None, not compiled
+                pr.window_size // 2 if pr.refine_window else None,  # the ring refit: off as None, not compiled
+                pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers)  # burst reuse (then its plane array)
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]

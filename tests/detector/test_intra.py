@@ -95,8 +95,12 @@ def ref_linkage(points, ratio, min_gap, min_points, jump_check=False):
     return [lo <= v <= hi for v in dts]
 
 
-def ref_fit(points, p: IntraParams, seed, g, delta):
-    """points: list of (dx, dy, dt). Returns (ok, a, b, inlier flags of the points)."""
+def ref_fit(points, p: IntraParams, seed, g, delta, info=None):
+    """points: list of (dx, dy, dt). Returns (ok, a, b, inlier flags of the points).
+
+    ``info`` (a dict), when given, gets ``"fallback"``: whether RANSAC ran again on all points."""
+    if info is not None:
+        info["fallback"] = False
     kept = ref_two_means([q[2] for q in points])
     if p.split_gap_ratio > 0:
         kept = ref_linkage(points, p.split_gap_ratio, p.inlier_threshold_us, p.min_points, p.split_jump_check)
@@ -104,6 +108,8 @@ def ref_fit(points, p: IntraParams, seed, g, delta):
             return False, math.nan, math.nan, [False] * len(points)
     res = ref_ransac(points, kept, p, seed, g, delta)
     if res == "degenerate" and p.fallback_all_points:
+        if info is not None:
+            info["fallback"] = True
         res = ref_ransac(points, [True] * len(points), p, seed, g, delta)
     if isinstance(res, str):
         return False, math.nan, math.nan, [False] * len(points)
@@ -221,7 +227,8 @@ def ref_stream(events, size, p: IntraParams):
     """Whole estimator on a list of events with a dict SAE (burst grouping, start-up and border rules)."""
     sae = {}
     prev = {}  # (plane, x, y) -> (time, lifetime or nan, polarity) of the pixel's previous event
-    fits = {}  # burst_reuse: (plane, x, y) -> (a, b) of the pixel's current burst's fit, or None
+    fits = {}  # burst_reuse: (plane, x, y) -> (a, b) of the pixel's current burst's stored plane, or None
+    counts = {}  # burst_reuse: (plane, x, y) -> fits stored by the pixel's current burst
     half = p.window_size // 2
     out = []
     burst = p.burst_lifetimes
@@ -235,8 +242,9 @@ def ref_stream(events, size, p: IntraParams):
         cont = burst > 0 and ppol == pol and t_ev - pt <= burst * plt and (not span or t_ev - sae[key] <= span * plt)
         trial = p.burst_startup and burst > 0 and not cont and ppol == pol and math.isnan(plt)
         inliers = []  # pixels of the last fit's inliers
+        info = {"fallback": False}  # the last fit's: RANSAC ran on all points
 
-        def fit(t, oldest=None):
+        def gather(t, oldest=None):
             pts, cells = [], []
             for oy in range(-half, half + 1):
                 for ox in range(-half, half + 1):
@@ -245,11 +253,24 @@ def ref_stream(events, size, p: IntraParams):
                         if oldest is None or sae[q] >= oldest:
                             pts.append((float(ox), float(oy), float(sae[q] - t)))
                             cells.append(q)
-            ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px)
+            return pts, cells
+
+        def fit(t, oldest=None):
+            pts, cells = gather(t, oldest)
+            ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px, info)
             inliers[:] = [q for q, f in zip(cells, flags) if f]
             if ok and p.refine_window:
                 a, b = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f], a, b,
                                       oldest)
+            return ok, a, b
+
+        def warm_refit(t, a0, b0):
+            """burst_reuse: the stored plane's inliers among the window (no 2-means, no trial), least squares."""
+            pts, cells = gather(t)
+            ok, a, b, flags = ref_burst_refit(pts, a0, b0, p, p.delta_px)
+            inliers[:] = [q for q, f in zip(cells, flags) if f]
+            if ok and p.refine_window:
+                a, b = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f], a, b)
             return ok, a, b
 
         def stale_cutoff():
@@ -264,11 +285,18 @@ def ref_stream(events, size, p: IntraParams):
             return t_ev - int(gap)
 
         fresh = not cont  # passage_gap: not a continuation by the rule (a trial may make it one)
-        reused = p.burst_reuse and cont and fits.get(key) is not None
+        stored = fits.get(key) if p.burst_reuse and cont else None
+        reused = stored is not None and counts[key] >= p.burst_reuse
+        warm = False
         if reused:  # burst reuse: the burst's plane; no fit, no fit rule
-            ok, (a, b) = True, fits[key]
+            ok, (a, b) = True, stored
+        elif stored is not None and p.burst_warm_refit:  # burst reuse: a warm refit on the stored plane, else a fit
+            ok, a, b = warm_refit(sae[key], *stored)
+            warm = ok
+            if not ok:
+                ok, a, b = fit(sae[key])
         elif cont or trial:
-            ok, a, b = fit(sae[key])  # fitted at the burst's first time
+            ok, a, b = fit(sae[key])  # fitted at the burst's first time (a burst without stored plane: refitted)
             if trial:
                 lt_fit = math.hypot(a, b)
                 if ok and t_ev - pt <= burst * lt_fit and (not span or t_ev - sae[key] <= span * lt_fit):
@@ -287,8 +315,10 @@ def ref_stream(events, size, p: IntraParams):
                 ok = lt_fit <= k * med and lt_fit * k >= med
         if ok and p.passage_gap and fresh and ppol == pol:
             ok = math.sqrt(a * a + b * b) <= p.passage_gap * float(t_ev - pt)
-        if p.burst_reuse and not reused:
-            fits[key] = (a, b) if ok else None
+        if p.burst_reuse and not reused:  # an estimate stores its plane and counts, unless it is the fallback's
+            keep_fit = ok and (warm or not info["fallback"]) and 1 + len(inliers) >= p.burst_reuse_inliers
+            fits[key] = (a, b) if keep_fit else None
+            counts[key] = (counts.get(key, 0) if cont else 0) + keep_fit
         lt = math.sqrt(a * a + b * b) if ok else math.nan
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
@@ -303,6 +333,37 @@ def ref_stream(events, size, p: IntraParams):
         keep = p.burst_startup and cont and not ok  # an invalid event inside a burst keeps the burst's lifetime
         prev[key] = (t_ev, plt if keep else lt, pol)
     return np.array(out, dtype=LIFETIME_DTYPE)
+
+
+def ref_burst_refit(points, a0, b0, p: IntraParams, delta):
+    """burst_reuse's warm refit: the points within the inlier threshold of the plane ``(a0, b0)`` (the residual of a
+    RANSAC candidate), refitted by least squares with the current event as the fit's refit, and its rules.
+    Returns (ok, a, b, inlier flags)."""
+    slack = delta * (abs(a0) + abs(b0))
+    thr = p.inlier_threshold_us + p.inlier_threshold_rel * math.sqrt(a0 * a0 + b0 * b0)
+    flags = [max(0.0, abs(t - (a0 * x + b0 * y)) - slack) <= thr for x, y, t in points]
+    cnt = 1 + sum(flags)
+    if cnt < p.min_inliers or cnt < 3:
+        return False, math.nan, math.nan, flags
+    pts = [(0.0, 0.0, 0.0)] + [q for q, f in zip(points, flags) if f]
+    X = np.array([q[:2] for q in pts], float)
+    T = np.array([q[2] for q in pts], float)
+    if p.refit_intercept:
+        X = X - X.mean(0)
+        T = T - T.mean()
+    g = X.T @ X
+    if not g[0, 0] * g[1, 1] - g[0, 1] ** 2 > 1e-9 * g[0, 0] * g[1, 1]:
+        return False, math.nan, math.nan, flags
+    a, b = np.linalg.solve(g, X.T @ T)
+    if not (a * a + b * b > 0 and math.isfinite(a) and math.isfinite(b)):
+        return False, math.nan, math.nan, flags
+    if p.event_on_plane and p.refit_intercept and not ref_event_on_plane(pts[1:], a, b, p, delta):
+        return False, math.nan, math.nan, flags
+    if p.newer_share_max < 1.0:
+        newer = ref_newer_count(points, a, b, p, delta)
+        if newer > p.newer_share_max * (newer + cnt - 1):
+            return False, math.nan, math.nan, flags
+    return True, float(a), float(b), flags
 
 
 def ref_ring_refit(sae, plane, x, y, t, size, p: IntraParams, inl, a, b, oldest=None):
