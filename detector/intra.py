@@ -434,59 +434,66 @@ first time, least squares, the rules that need no cluster; it costs the gather a
 one pass (no 2-means, trial or compaction) and is better constrained than the
 burst's first fit (more points on the plane).
 
-Settings measured (``--intra burst_reuse=2``: A, warm refits, the default inlier floor
-``burst_reuse_inliers = 10``; A0: A with ``--intra burst_reuse_inliers=0``; B: ``--intra
-burst_reuse=3 --intra burst_warm_refit=false``, full refits, floor 10), figures off ->
-setting, medians over the cells (median error / > 2x off / estimated; noisy also
-noise given a lifetime and cells with it <= 10 %), 2026-12-03, load 1.3-5.7. Quick grid,
-defaults: off clean r >= 3 1.39 / 1.45 / 100 %, first 0.1 s 2.18 %; clean r < 3 5.07 /
-3.11 / 93.52 %; noisy 5.36 / 5.52 / 93.59 %, noise 26.30 %, 2 of 30 cells; intra CPU
-2.8 s. A: 1.41 / 1.45 / 100 %, first 2.13 %; 5.07 / 3.11 / 93.52 %; 5.08 / 5.52 / 93.59
-%, 26.31 %, 2; 2.0 s. A0: 1.38 / 1.45 / 100 %, first 1.64 %; 5.07 / 3.05 / 93.55 %; 5.00
-/ 5.47 / 93.85 %, 26.32 %, 2; 2.2 s. B: 1.40 / 1.45 / 100 %, first 2.19 %; r < 3
-unchanged; 5.32 / 5.52 / 93.59 %, 26.30 %, 2; 2.7 s. Quick grid, ``--preset noise``: off
-0.50 / 0.24 / 97.57 %; 1.56 / 0.00 / 71.96 %; 1.90 / 1.16 / 73.89 %, noise 6.84 %, 27 of
-30; 8.3 s. A: 0.51 / 0.25 / 97.76 %; 1.56 / 0.00 / 72.01 %; 1.95 / 0.95 / 78.39 %, 6.92 %,
-26; 6.1 s. A0: 0.51 / 0.32 / 97.77 %; 1.56 / 0.00 / 72.03 %; 1.97 / 1.04
-/ 80.67 %, 7.02 %, 26; 5.8 s. B: 0.51 / 0.25 / 97.64 %; r < 3 unchanged; 1.93 / 1.16 /
-74.02 %, 6.84 %, 27; 8.1 s. Full grid (96x72, 210 cells, the same commands without
-``--quick``), defaults: off 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 / 4.57 / 88.53 %;
-4.43 / 4.26 / 94.96 %, 26.81 %, 14 of 100; 15.7 s. A: 1.83 / 0.87 / 100 %, first 2.70
-%; 5.28 / 4.57 / 88.51 %; 4.42 / 4.23 / 94.99 %, 26.81 %, 14; 14.4 s. A0: 1.83 / 0.87 /
-100 %, first 2.88 %; 5.28 / 4.35 / 89.53 %; 4.41 / 4.39 / 95.30 %, 26.84 %, 14; 13.7 s
-(the noisy > 2x median +0.13 points; over the 100 noisy cells its mean -0.20 points, 48
-cells up, 41 down; A0 with k = 3: 4.38 %). B: 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 /
-4.57 / 88.53 %; 4.43 / 4.25 / 94.97 %, 26.81 %, 14; 13.9 s. Full grid, ``--preset
-noise``: off 0.78 / 0.04 / 98.79 %; 1.68 / 0.01 / 72.38 %; 1.87 / 0.44 / 79.07 %, 6.83
-%, 92 of 100; 51.3 s (3.7 s of it compilation in the first cell). B: the same figures
-except noisy estimated 79.09 %; 46.1 s. A0: 0.79 / 0.04 / 98.79 %; r < 3 unchanged;
-1.86 / 0.38 / 82.84 %, 7.06 %, 88; 30.3 s. So A is neutral with the defaults and B with
-both presets (within 0.03 points everywhere, on both grids); A0 is neutral on the quick
-grid only; with ``noise_params()`` every warm setting gives more estimates (+3.8 to
-+6.8 points in the noisy cells) and more noise events a lifetime (+0.06 to +0.2 points).
+Settings measured (``--intra burst_reuse=2``: A, warm refits with the default inlier
+floor ``burst_reuse_inliers = 8``; A10 / A0: A with ``--intra burst_reuse_inliers=10`` /
+``0``; ``--intra burst_reuse=3 --intra burst_warm_refit=false``: B, full refits, floor 8;
+B10: floor 10), figures off -> setting, medians over the cells (median error / > 2x
+off / estimated; noisy also noise given a lifetime and cells with it <= 10 %), summed
+intra CPU, 2026-12-03, load 0.3-5.7. Quick grid, defaults: off clean r >= 3 1.39 / 1.45
+/ 100 %, first 0.1 s 2.18 %; clean r < 3 5.07 / 3.11 / 93.52 %; noisy 5.36 / 5.52 /
+93.59 %, noise 26.30 %, 2 of 30 cells; 2.8 s. A: 1.38 / 1.45 / 100 %, first 1.77 %; 5.07
+/ 3.15 / 93.52 %; 5.05 / 5.48 / 93.59 %, 26.31 %, 2; 2.4 s. A10: 1.41 / 1.45 / 100 %,
+first 2.13 %; 5.07 / 3.11 / 93.52 %; 5.08 / 5.52 / 93.59 %, 26.31 %, 2. A0: 1.38 / 1.45
+/ 100 %, first 1.64 %; 5.07 / 3.05 / 93.55 %; 5.00 / 5.47 / 93.85 %, 26.32 %, 2. B: 1.40
+/ 1.45 / 100 %, first 2.21 %; r < 3 unchanged; 5.26 / 5.52 / 93.59 %, 26.30 %, 2; 3.0 s
+(B10: 1.40, noisy 5.32 %, else as B). Quick grid, ``--preset noise``: off 0.50 / 0.24 /
+97.57 %; 1.56 / 0.00 / 71.96 %; 1.90 / 1.16 / 73.89 %, noise 6.84 %, 27 of 30; 8.3 s. B:
+0.50 / 0.24 / 97.65 %; r < 3 unchanged; 1.93 / 1.17 / 74.00 %, 6.85 %, 27; 6.7 s (B10:
+0.51 / 0.25 / 97.64 %, 1.93 / 1.16 / 74.02 %, 6.84 %). A10: 0.51 / 0.25 / 97.76 %; 1.56 /
+0.00 / 72.01 %; 1.95 / 0.95 / 78.39 %, 6.92 %, 26; A0: 0.51 / 0.32 / 97.77 %; 1.56 / 0.00
+/ 72.03 %; 1.97 / 1.04 / 80.67 %, 7.02 %, 26. Full grid (96x72, 210 cells, the same
+commands without ``--quick``), defaults: off 1.82 / 0.87 / 100 %, first 2.69 %; 5.28 /
+4.57 / 88.53 %; 4.43 / 4.26 / 94.96 %, 26.81 %, 14 of 100; 15.7 s. A: 1.83 / 0.87 / 100 %,
+first 2.79 %; 5.28 / 4.55 / 88.53 %; 4.42 / 4.21 / 95.02 %, 26.82 %, 14; 13.9 s. A10:
+1.83 / 0.87 / 100 %, first 2.70 %; 5.28 / 4.57 / 88.51 %; 4.42 / 4.23 / 94.99 %, 26.81
+%, 14. A0: 1.83 / 0.87 / 100 %, first 2.88 %; 5.28 / 4.35 / 89.53 %; 4.41 / 4.39 / 95.30
+%, 26.84 %, 14 (the noisy > 2x median +0.13 points; over the 100 noisy cells its mean
+-0.20 points, 48 cells up, 41 down; A0 with k = 3: 4.38 %). B: 1.82 / 0.87 / 100 %,
+first 2.69 %; 5.28 / 4.57 / 88.53 %; 4.43 / 4.26 / 94.98 %, 26.81 %, 14; 12.9 s (B10:
+noisy 4.25 / 94.97 %, else as B). Full grid, ``--preset noise``: off 0.78 / 0.04 /
+98.79 %; 1.68 / 0.01 / 72.38 %; 1.87 / 0.44 / 79.07 %, 6.83 %, 92 of 100; 51.3 s (3.7 s
+of it compilation in the first cell). B and B10: the same figures except noisy
+estimated 79.09 %; 40.5 / 46.1 s. A0: 0.79 / 0.04 / 98.79 %; r < 3 unchanged; 1.86 /
+0.38 / 82.84 %, 7.06 %, 88. So A is neutral with the defaults (every group's median
+error and > 2x share within 0.04 points, estimated and noise within 0.01; the first
+0.1 s +0.10 points on the full grid, -0.41 on the quick one) and B with both presets
+(within 0.03 points everywhere, on both grids); A0 is neutral on the quick grid only;
+with ``noise_params()`` every warm setting gives more estimates (+3.8 to +6.8 points in
+the noisy cells) and more noise events a lifetime (+0.06 to +0.2 points).
 
 Estimator CPU per kept event (``filter_events`` then :func:`estimate_lifetimes`, the
-settings alternated in one process, best of 5, ``time.process_time``; scratch script,
-not in ``benchmarks/``; 2026-12-03 09:36 UTC, load 1.2-1.7), ``stripes.mat`` /
-simulated ``shapes_translation`` (2 s): defaults off 908 / 477 ns; A 686 / 280 ns (1.32x
-/ 1.71x); A0 613 / 213 ns (1.48x / 2.24x); B 873 / 362 ns (1.04x / 1.32x);
-``burst_reuse = 1`` with floor 0 (reuse after the first stored fit) 558 / 170 ns (1.63x
-/ 2.80x). A run at load 4.3-5.5: A 1.16x / 1.72x, A0 1.30x / 2.20x, B 0.92x / 1.34x.
-``noise_params()``: off 3652 / 2631 ns; B 3804 / 1702 ns (0.96x / 1.55x); A (not
-neutral there) 2684 / 883 ns (1.36x / 2.98x). Estimated on ``stripes.mat``: defaults
-96.12 % -> A 96.14, A0 96.31, B 96.12 %; ``noise_params()`` 57.29 % -> B 57.69, A 65.04
-%. Of ``stripes.mat``'s kept events with A0 22 % take a stored plane, 23 % are warm
-refits (0.2 % of them fail and are fitted), 55 % are fitted (bursts' first events,
-bursts without plane); ``shapes_translation`` 57 / 19 / 24 %. On ``stripes.mat`` A0
-reaches nearly the bound of reuse after the first fit: the bursts' first fits are most
-of the cost.
+settings alternated in one process, best of 5 (noise: 3), ``time.process_time``;
+scratch script, not in ``benchmarks/``; 2026-12-03 09:54 UTC, load 0.9-1.4),
+``stripes.mat`` / simulated ``shapes_translation`` (2 s): defaults off 867 / 466 ns; A
+664 / 235 ns (1.31x / 1.99x); A10 681 / 268 ns (1.27x / 1.74x); A0 591 / 201 ns (1.47x
+/ 2.32x); B 848 / 328 ns (1.02x / 1.42x); B10 1.01x / 1.32x; ``burst_reuse = 1`` with
+floor 0 (reuse after the first stored fit; not neutral) 539 / 157 ns (1.61x / 2.96x).
+Other runs (load 1.2-5.5): A 1.44x / 2.02x, A10 1.16-1.32x / 1.70-1.74x, A0 1.30-1.49x /
+2.20-2.31x, B 0.92-1.04x / 1.32-1.42x: +-0.1 run to run. ``noise_params()``: off 3216 /
+2409 ns; B 3164 / 1401 ns (1.02x / 1.72x); B10 1.02x / 1.68x; A (not neutral there) 2463
+/ 739 ns (1.31x / 3.26x). Estimated on ``stripes.mat``: defaults 96.12 % -> A 96.16,
+A0 96.31, B 96.12 %; ``noise_params()`` 57.29 % -> B 57.76, B10 57.69, A 65.87 %. Of
+``stripes.mat``'s kept events with A0 22 % take a stored plane, 23 % are warm refits
+(0.2 % of them fail and are fitted), 55 % are fitted (bursts' first events, bursts
+without plane); ``shapes_translation`` 57 / 19 / 24 %: on ``stripes.mat`` the bursts'
+first fits are most of the cost, whatever the reuse.
 
 Why the noise preset resists: its fit rules reject many continuing events' refits,
 which reuse skips (real ``stripes.mat``, first 150,000 kept events, estimated without ->
 with plain reuse: all rules 55.8 -> 65.8 %; without ``split_gap_ratio`` 60.0 -> 64.0 %;
 without ``newer_share_max`` 63.0 -> 71.0 %; without ``lifetime_agreement`` 59.4 ->
 68.6 %), and the warm refit has no linkage split either (``stripes.mat`` estimated
-57.3 -> 65.0 % with A, 66.1 % with A0). Only full refits with an inlier floor keep the rejections. Also
+57.3 -> 65.9 % with A, 65.0 % with A10, 66.1 % with A0). Only full refits with an inlier floor keep the rejections. Also
 measured on the quick grid (same cells and scoring, scratch variants, not kept; defaults
 unless said): plain reuse after k full refits, fallback fits stored: k = 2: clean r >=
 3 1.42 %, > 2x 1.60 %, noisy > 2x 6.02 %; k = 3: 1.40 / 1.57 / 5.39 %; with fallback
@@ -745,10 +752,10 @@ class IntraParams:
         again. Speed (issue 12): continuing events are ~half of ``stripes.mat``'s
         and ~3/4 of the simulated ones. Measured neutral against the simulator's
         truth on the quick and full grids (module notes, "burst reuse"): 2 with
-        the defaults (estimator 1.2-1.3x / 1.7x cheaper per kept event on
+        the defaults (estimator 1.3-1.45x / 2.0x cheaper per kept event on
         ``stripes.mat`` / simulated ``shapes_translation``), and 3 with
-        ``burst_warm_refit=False`` with both the defaults (1.0x / 1.3x) and
-        :func:`noise_params` (1.0x / 1.55x); with :func:`noise_params` the warm
+        ``burst_warm_refit=False`` with both the defaults (1.0x / 1.4x) and
+        :func:`noise_params` (1.0x / 1.7x); with :func:`noise_params` the warm
         refits are not neutral (more estimates, more noise given a lifetime).
     burst_warm_refit : bool
         With ``burst_reuse >= 2``: how a burst's events are refitted before its
@@ -762,9 +769,9 @@ class IntraParams:
         With ``burst_reuse >= 1``: a fit (or warm refit) is stored, and counts
         towards ``burst_reuse``, only with at least this many inliers (current
         event included, in the ``window_size`` window: the ring refit's points
-        aside). Default 10 (twice the default ``min_inliers``; measured with the
-        5 x 5 window); 0: any (faster, but not neutral on the full grid, module
-        notes).
+        aside). Default 8 (measured with the 5 x 5 window and ``min_inliers = 5``;
+        10 is neutral too, a little slower); 0: any (faster, but not neutral on
+        the full grid, module notes).
     fill_neighbours : int
         0..8. Above 0, after the estimator, an event it left without estimate gets
         the median lifetime of its recent neighbours' estimates (same polarity
@@ -811,7 +818,7 @@ class IntraParams:
     refine_window: int = 0
     burst_reuse: int = 0
     burst_warm_refit: bool = True
-    burst_reuse_inliers: int = 10
+    burst_reuse_inliers: int = 8
     fill_neighbours: int = 0
     fill_tolerance: float = 0.5
     fill_agreement: float = 1.5
