@@ -404,7 +404,8 @@ history is the start's), slow high-contrast stripes (20 degrees, 10 px/s, r = 3)
 -> 6.69 / 11.87 ms (model-free 6.6 / 11.6). The strips' halo is the ring's radius (the
 events read that far).
 
-Burst reuse (``burst_reuse``, default 0 = off, every event fitted; with
+Burst reuse (``burst_reuse``, default 2 since 2026-12-03, the setting A below, neutral with the
+defaults; 0 = off, every event fitted, in :func:`robust_params` and :func:`noise_params`; with
 ``burst_warm_refit`` and ``burst_reuse_inliers``). The events of one passage of the edge
 at a pixel (a burst, ``burst_lifetimes``) share one lifetime, so a continuing event may
 take the burst's plane instead of fitting its window again: the estimator's cost
@@ -739,7 +740,9 @@ class IntraParams:
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
     burst_reuse : int
-        0 (default): off, every event is fitted (the bytes of before). ``k >= 1``,
+        0: off, every event is fitted (the bytes of before 2026-12-03; the
+        presets :func:`robust_params` and :func:`noise_params` keep it off).
+        2 (default since 2026-12-03, measured neutral with the defaults). ``k >= 1``,
         with ``burst_lifetimes > 0``: an event that continues its pixel's burst,
         whose burst holds a stored plane, is refitted (``burst_warm_refit``) while
         the burst has stored fewer than ``k`` fits, and from then on takes the
@@ -816,7 +819,7 @@ class IntraParams:
     passage_gap: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
-    burst_reuse: int = 0
+    burst_reuse: int = 2
     burst_warm_refit: bool = True
     burst_reuse_inliers: int = 8
     fill_neighbours: int = 0
@@ -886,7 +889,8 @@ class IntraParams:
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
 ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
-          "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 9}
+          "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 9,
+          "burst_reuse": 0}  # reuse measured neutral with the defaults only (module notes, "burst reuse")
 
 
 def _preset(base: dict, overrides: dict) -> IntraParams:

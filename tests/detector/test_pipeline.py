@@ -221,7 +221,7 @@ def test_streamed_bytes_equal_one_shot_for_any_chunking(edge_events, random_even
     kw = {"buffer_params": BufferParams(tau_min_us=3_000)}
     display = None
     if case.startswith("burst_reuse"):
-        kw["params"] = IntraParams(burst_reuse=True)
+        kw["params"] = IntraParams(burst_reuse=2)
         display = "predecessor"  # clears behind each event: the flow counts
     if case.startswith("line"):
         kw["buffer_params"] = line_params(line_window_us=20_000)
