@@ -37,13 +37,8 @@ _NEVER = np.iinfo(np.int64).min
 
 @njit(cache=True, fastmath=False)
 def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, thr_us, thr_rel, max_trials,
-                 stop_prob, min_points, min_inliers, burst, seed, out_lt, out_valid, ls_first, fits):
-    """Lifetimes of time-sorted events (per-polarity SAE ``sae``, burst state ``prev_t/prev_lt``).
-
-    ``fits`` (two per cell, NaN = none; empty = off): burst reuse, as the project's
-    ``IntraParams.burst_reuse``: a continuing event takes its burst's stored plane.
-    """
-    reuse = fits.shape[0] > 0
+                 stop_prob, min_points, min_inliers, burst, seed, out_lt, out_valid, ls_first):
+    """Lifetimes of time-sorted events (per-polarity SAE ``sae``, burst state ``prev_t/prev_lt``)."""
     nn = (2 * half + 1) ** 2
     dx = np.empty(nn)
     dy = np.empty(nn)
@@ -60,17 +55,10 @@ def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, t
         base = p[k] * height * width
         si = base + yk * width + xk
         t_ev = tk
-        cont = burst > 0.0 and tk - prev_t[si] <= burst * prev_lt[si]
-        if cont:
+        if burst > 0.0 and tk - prev_t[si] <= burst * prev_lt[si]:
             tk = sae[si]
         else:
             sae[si] = tk
-        if reuse and cont and not math.isnan(fits[2 * si]):
-            out_lt[k] = math.sqrt(fits[2 * si] ** 2 + fits[2 * si + 1] ** 2)
-            out_valid[k] = True
-            prev_t[si] = t_ev
-            prev_lt[si] = out_lt[k]
-            continue
         # ---- gather over clipped ranges
         y0 = max(yk - half, 0)
         y1 = min(yk + half, height - 1)
@@ -253,9 +241,6 @@ def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, t
                 a_out = a
                 b_out = b
             break
-        if reuse:
-            fits[2 * si] = a_out if ok else np.nan
-            fits[2 * si + 1] = b_out if ok else np.nan
         if ok:
             out_lt[k] = math.sqrt(a_out * a_out + b_out * b_out)
             out_valid[k] = True
@@ -267,9 +252,8 @@ def bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, t
 
 
 def bound_lifetimes(events, width, height, half=2, delta=0.25, thr_us=50.0, thr_rel=0.2, max_trials=20,
-                    stop_prob=0.999, min_points=5, min_inliers=5, burst=1.0, seed=0, ls_first=None, reuse=False):
-    """``(lifetime_us, valid)`` of ``events`` by :func:`bound_stream` (fresh state; the IntraParams defaults;
-    ``reuse``: burst reuse)."""
+                    stop_prob=0.999, min_points=5, min_inliers=5, burst=1.0, seed=0, ls_first=None):
+    """``(lifetime_us, valid)`` of ``events`` by :func:`bound_stream` (fresh state; the IntraParams defaults)."""
     if ls_first is None:
         from evedge.detector.intra import IntraParams
 
@@ -286,6 +270,5 @@ def bound_lifetimes(events, width, height, half=2, delta=0.25, thr_us=50.0, thr_
     lt = np.empty(n)
     valid = np.empty(n, np.bool_)
     bound_stream(x, y, t, p, sae, prev_t, prev_lt, width, height, half, delta, thr_us, thr_rel, max_trials,
-                 stop_prob, min_points, min_inliers, burst, seed, lt, valid, float(ls_first),
-                 np.full(2 * cells if reuse else 0, np.nan))
+                 stop_prob, min_points, min_inliers, burst, seed, lt, valid, float(ls_first))
     return lt, valid
