@@ -75,6 +75,15 @@ changes the draws: 1.05x). So the kernel is latency-bound per event (dependent
 chains, unpredictable branches on the counts) rather than by any one loop, and
 3.5 M events/s per core (~286 ns per event for all stages) would need about
 half of today's estimator work per event: not reached.
+
+Since 2026-12-03 the defaults reuse burst planes (``IntraParams.burst_reuse = 2``,
+measured neutral on the simulator's truth; module notes of ``detector/intra.py``):
+a burst's continuing events are refitted warm from the stored plane, then take it.
+In one run (load 0.7-1.5) that made the estimator 1.38x cheaper on ``stripes.mat``
+(864 -> 635 ns per kept event) and 1.83x on shapes_translation (461 -> 252); what is
+left on ``stripes.mat`` is mostly the full fits of the bursts' first events (~55 %
+of the kept events). The bound is compared with the estimator at ``burst_reuse = 0``
+(the same work).
 """
 
 from __future__ import annotations
