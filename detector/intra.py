@@ -470,7 +470,12 @@ error and > 2x share within 0.04 points, estimated and noise within 0.01; the fi
 0.1 s +0.10 points on the full grid, -0.41 on the quick one) and B with both presets
 (within 0.03 points everywhere, on both grids); A0 is neutral on the quick grid only;
 with ``noise_params()`` every warm setting gives more estimates (+3.8 to +6.8 points in
-the noisy cells) and more noise events a lifetime (+0.06 to +0.2 points).
+the noisy cells) and more noise events a lifetime (+0.06 to +0.2 points). The lead, full
+grid with the line rule (``--workers 1 --buffer-preset line --intra burst_reuse=K``,
+2026-12-03 10:24 UTC, load ~1.5; medians clean r >= 3 / r < 3 / noisy, goal cells median
+error of 210): K = 0 1.8 / 5.3 / 4.4 %, 82; K = 2 (A, the default since) 1.8 / 5.3 / 4.4 %,
+84; K = 1 (warm refits never, floor 8) 2.0 / 5.3 / 4.6 %, 75: one stored fit is not
+enough. With the paper's buffer, K = 0 -> 2: 80 -> 82 cells, medians within 0.1 (README).
 
 Estimator CPU per kept event (``filter_events`` then :func:`estimate_lifetimes`, the
 settings alternated in one process, best of 5 (noise: 3), ``time.process_time``;
