@@ -551,20 +551,10 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
         if on_plane is not None:
             on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt,
                                                                       delta, thr_us, thr_rel, on_plane)
-        if intercept:
-            # centred sums: least squares with a free time offset (the current event
-            # becomes one point among the inliers instead of a fixed anchor)
-            sxx -= sx * sx / s1
-            sxy -= sx * sy / s1
-            syy -= sy * sy / s1
-            sxt -= sx * st / s1
-            syt -= sy * st / s1
-        det = sxx * syy - sxy * sxy
-        a = best_a
-        b = best_b
-        if det > 1e-9 * (sxx * syy):
-            a = (sxt * syy - syt * sxy) / det
-            b = (syt * sxx - sxt * sxy) / det
+        solved, a, b = _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept)
+        if not solved:
+            a = best_a
+            b = best_b
         if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b):
             # a flat plane (all inliers at the current time): no finite lifetime
             return False, np.nan, np.nan
@@ -579,6 +569,29 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
                     return False, np.nan, np.nan
         return True, a, b
     return False, np.nan, np.nan
+
+
+@njit(cache=True, inline="always")
+def _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept):
+    """Least-squares slopes ``(solved, a, b)`` of ``dt = a dx + b dy (+ c)`` from the raw sums over the points.
+
+    With ``intercept`` the sums are centred first: a free time offset ``c`` (the
+    current event becomes one point among the others instead of a fixed anchor).
+    ``solved`` is False (and ``a, b`` NaN) when the points fix no plane (the
+    determinant is not above ``1e-9`` of its scale: all on one line). The one
+    place of this arithmetic for :func:`_fit_points`, :func:`_refine` and
+    :func:`_burst_refit` (same operations in the same order: the same bytes).
+    """
+    if intercept:
+        sxx -= sx * sx / s1
+        sxy -= sx * sy / s1
+        syy -= sy * sy / s1
+        sxt -= sx * st / s1
+        syt -= sy * st / s1
+    det = sxx * syy - sxy * sxy
+    if not det > 1e-9 * (sxx * syy):
+        return False, np.nan, np.nan
+    return True, (sxt * syy - syt * sxy) / det, (syt * sxx - sxt * sxy) / det
 
 
 @njit(cache=True)
@@ -752,17 +765,9 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
             syt += yq * tq
     if joined == 0:
         return a, b
-    if intercept:
-        sxx -= sx * sx / s1
-        sxy -= sx * sy / s1
-        syy -= sy * sy / s1
-        sxt -= sx * st / s1
-        syt -= sy * st / s1
-    det = sxx * syy - sxy * sxy
-    if not det > 1e-9 * (sxx * syy):
+    solved, a2, b2 = _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept)
+    if not solved:
         return a, b
-    a2 = (sxt * syy - syt * sxy) / det
-    b2 = (syt * sxx - sxt * sxy) / det
     if not (a2 * a2 + b2 * b2 > 0.0) or not math.isfinite(a2) or not math.isfinite(b2):
         return a, b
     return a2, b2
@@ -820,17 +825,9 @@ def _burst_refit(wf, wi, n, a0, b0, delta, thr_us, thr_rel, min_inliers, interce
     if on_plane is not None:
         on = not (on_plane > 0.0 and intercept) or _event_on_plane(s1, sx, sy, st, sxx, sxy, syy, sxt, syt,
                                                                   delta, thr_us, thr_rel, on_plane)
-    if intercept:
-        sxx -= sx * sx / s1
-        sxy -= sx * sy / s1
-        syy -= sy * sy / s1
-        sxt -= sx * st / s1
-        syt -= sy * st / s1
-    det = sxx * syy - sxy * sxy
-    if not det > 1e-9 * (sxx * syy):
+    solved, a, b = _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept)
+    if not solved:
         return False, np.nan, np.nan, cnt
-    a = (sxt * syy - syt * sxy) / det
-    b = (syt * sxx - sxt * sxy) / det
     if not (a * a + b * b > 0.0) or not math.isfinite(a) or not math.isfinite(b) or not on:
         return False, np.nan, np.nan, cnt
     if noise is not None:
