@@ -270,7 +270,7 @@ class EventBuffer:
     def process(self, events: np.ndarray) -> np.ndarray:
         """Take a time-sorted chunk; return the kept events whose fate is now known."""
         if type(events) is np.ndarray and events.ndim == 1 and events.dtype == EVENT_DTYPE:
-            taken = self._take(events, None)  # checked in the pass that copies it
+            taken = self._take(events, None, columns=False)  # checked in the pass that copies it
             if taken is not None:
                 return taken[0]
             # refused (nothing changed): the full checks below raise with their messages
@@ -313,12 +313,12 @@ class EventBuffer:
         return _n_decided(self._cols[2][sl], self._supported[sl], self._last_time, self.params.hold_us,
                           self.params.mode == "causal")
 
-    def _take(self, events: np.ndarray | None, until_us: int | None):
+    def _take(self, events: np.ndarray | None, until_us: int | None, columns: bool = True):
         """:meth:`process` then :meth:`advance_to` in one release, with the released events' columns.
 
         ``events``: a chunk of :data:`~evedge.events.EVENT_DTYPE`, checked here in the
         pass that copies it (None: none). Returns the released events and their
-        x, y, t, p (int64, as :func:`columns`), the same events as the two calls
+        x, y, t, p (int64, as :func:`columns`; None with ``columns`` False), the same events as the two calls
         (the decided run only grows with the time); or None, changing nothing,
         when the chunk or ``until_us`` fails a check (the caller then runs the
         full checks for their messages).
@@ -346,6 +346,8 @@ class EventBuffer:
         if self._last_time is None:
             return self._release(0, True)
         r = self._n_ready()
+        if not columns:  # (for process: the records only)
+            return self._release(r), None
         out, cols = _release_slots(self._ev, *self._cols, self._supported, self._start, r)
         self._advance(r)
         return out, (cols[0], cols[1], cols[2], cols[3])
