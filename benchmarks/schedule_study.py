@@ -41,7 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_detector import load_stripes, simulated_shapes  # noqa: E402
 
 from evedge.detector import filter_events  # noqa: E402
-from evedge.detector._intra_kernels import _NEVER, _event_key, _intra_stream, off_as_none, scratch_arrays  # noqa: E402
+from evedge.detector._intra_kernels import (_NEVER, _event_key, _intra_stream, _ls_slopes, off_as_none,  # noqa: E402
+                                           scratch_arrays)
 from evedge.detector.intra import IntraParams, noise_args  # noqa: E402
 from evedge._splitmix import _splitmix64  # noqa: E402
 
@@ -120,16 +121,8 @@ def _ls(P, m, a, b, delta, thr_us, thr_rel, origin_only, intercept):
             syy += y * y
             sxt += x * t
             syt += y * t
-    if intercept:
-        sxx -= sx * sx / s1
-        sxy -= sx * sy / s1
-        syy -= sy * sy / s1
-        sxt -= sx * st / s1
-        syt -= sy * st / s1
-    det = sxx * syy - sxy * sxy
-    if not det > 1e-9 * (sxx * syy):
-        return np.nan, np.nan
-    return (sxt * syy - syt * sxy) / det, (syt * sxx - sxt * sxy) / det
+    _, a2, b2 = _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept)  # NaN when singular
+    return a2, b2
 
 
 @njit(cache=True)
