@@ -374,7 +374,7 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     sims = {}
     for k in sorted({tiles, 8}):
         sims[k] = simulate_strips(sub, size, k, half=half, valid=serial_valid)
-    print(f"  load-free proxy: simulated schedule (the strips' rules, idle workers, one unit per fit) "
+    print("  load-free proxy: simulated schedule (the strips' rules, idle workers, one unit per fit) "
           + "; ".join(f"{k} strips {v[0]:.2f}x (workers busy {v[1]:.2f}, deferred {v[2]:.2f})"
                       for k, v in sims.items())
           + f"; / the extra CPU ({overhead:.3f}x) -> estimator on {tiles} idle cores {sims[tiles][0] / overhead:.2f}x")

@@ -69,3 +69,42 @@ def _pack_lifetimes(lt, vx, vy, valid, out):
         o.vx_px_s = vx[k]
         o.vy_px_s = vy[k]
         o.valid = valid[k]
+
+
+@njit(cache=True)
+def _kept_columns(events, kept):
+    """The kept events' x, y, t, p as a (4, m) int64 array (its rows: the estimator's columns), in one pass."""
+    m = 0
+    for k in range(kept.shape[0]):
+        if kept[k]:
+            m += 1
+    cols = np.empty((4, m), np.int64)
+    i = 0
+    for k in range(kept.shape[0]):
+        if kept[k]:
+            e = events[k]
+            cols[0, i] = e.x
+            cols[1, i] = e.y
+            cols[2, i] = e.t
+            cols[3, i] = 1 if e.p else 0
+            i += 1
+    return cols
+
+
+@njit(cache=True)
+def _expand_lifetimes(kept, lt, vx, vy, valid, out):
+    """``out`` (LIFETIME_DTYPE, aligned with all events): the kept events' columns, no estimate elsewhere."""
+    i = 0
+    for k in range(kept.shape[0]):
+        o = out[k]
+        if kept[k]:
+            o.lifetime_us = lt[i]
+            o.vx_px_s = vx[i]
+            o.vy_px_s = vy[i]
+            o.valid = valid[i]
+            i += 1
+        else:
+            o.lifetime_us = np.nan
+            o.vx_px_s = np.nan
+            o.vy_px_s = np.nan
+            o.valid = False

@@ -18,7 +18,7 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_not_before, check_sensor_size, validated
-from ._stream_kernels import _pack_lifetimes
+from ._stream_kernels import _expand_lifetimes, _kept_columns, _pack_lifetimes
 from ._tiles import check_n_tiles
 from .buffer import EventBuffer
 from .edges import EdgeImage
@@ -266,6 +266,16 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
         # the filter runs serially: the event buffer's one-shot passes (~18 ns/event) cost less than its
         # strips' gathering and bookkeeping (benchmarks/bench_buffer.py); same bytes either way
         kept = keep_mask(flt, events, sensor_size, buffer_params) if flt else np.ones(events.shape[0], bool)
+        if flt and type(estimator) is IntraPixelLifetime and events.shape[0]:
+            # the built-in estimator on the kept events' columns, its columns scattered back into the
+            # records in one pass each (no record copy, column unpacking, packing or field scatters)
+            cols = _kept_columns(events, kept)
+            out = np.empty(events.shape[0], dtype=LIFETIME_DTYPE)
+            if cols.shape[1]:  # (the estimator's _estimate takes a non-empty chunk)
+                _expand_lifetimes(kept, *estimator._estimate(*cols), out)
+            else:
+                _expand_lifetimes(kept, *(np.empty(0),) * 3, np.empty(0, bool), out)
+            return DetectionResult(out, kept)
         # compress, not events[kept]: the same rows, ~4x faster on the packed event records
         sub = events.compress(kept) if flt else events
         with validated(sub, sensor_size):  # a subset, in order, of checked events

@@ -32,6 +32,20 @@ def test_detect_aligns_with_input(edge_events, random_events):
     assert raw.lifetimes.tobytes() == estimate_lifetimes(ev, size).tobytes()
 
 
+def test_detect_when_the_buffer_keeps_nothing():
+    # isolated events (no neighbour ever fires): the buffer drops all, and detect gives no estimate at all
+    from evedge.events import make_events
+
+    size = SensorSize(40, 40)
+    ev = make_events(np.array([2, 20, 37]), np.array([3, 30, 11]), np.array([0, 50_000, 100_000]),
+                     np.array([True, False, True]))
+    res = detect(ev, size)
+    assert not res.kept.any() and not res.lifetimes["valid"].any()
+    assert np.isnan(res.lifetimes["lifetime_us"]).all() and np.isnan(res.lifetimes["vx_px_s"]).all()
+    empty = detect(ev[:0], size)
+    assert empty.lifetimes.shape == (0,) and empty.kept.shape == (0,)
+
+
 def test_streaming_detector_equals_one_shot(edge_events, random_events):
     size = SensorSize(24, 20)
     ev = _noisy_edges(edge_events, random_events)

@@ -8,7 +8,6 @@ accumulation of the pieces' jumps (:func:`evedge.sim._scanline._piece_jumps`, no
 checks) is the production one; the prefix sums and the left border stay the old Python ones.
 """
 
-import math
 
 import numpy as np
 

@@ -4,7 +4,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from evedge.io import read_hdf5
 from evedge.sim.dataset import load_dataset, parse_dataset, sequence_scene

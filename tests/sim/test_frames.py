@@ -1,6 +1,5 @@
 """Frames and video in: ESIM's algorithm (against a reference written here), readers, upsampling, errors."""
 
-import math
 
 import numpy as np
 import pytest

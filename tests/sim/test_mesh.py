@@ -1,6 +1,5 @@
 """The pyrender mesh renderer against the exact box renderer and closed forms (skipped only on a GL-stack failure)."""
 
-import math
 import traceback
 from pathlib import Path
 
@@ -15,7 +14,6 @@ from evedge.sim.mesh import (
     load_mesh_file,
     primitive_mesh,
     procedural_texture,
-    scene_meshes,
 )
 from evedge.sim.render3d import Box3D, MeshRenderer
 from evedge.sim.trajectory import CameraTrajectory
