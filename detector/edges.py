@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
-                      columns, validated)
+                      columns)
 from ._edges_kernels import _DX, _DY, _edge_update
 from ._tiles import check_n_tiles, edge_frames_tiled
 
@@ -160,8 +160,15 @@ class EdgeImage:
                 f"t_us={t_us} is before the newest processed event (t={self._last_time} us); "
                 "the state no longer holds older instants"
             )
-        img = (self._last_t <= t_us) & (t_us < self._expiry)
+        img = np.empty(self._last_t.shape[0], dtype=bool)
+        self._render(t_us, img, np.empty_like(img))
         return img.reshape(self.sensor_size.shape)
+
+    def _render(self, t_us, out: np.ndarray, scratch: np.ndarray) -> None:
+        """:meth:`image_at` (flat) written into ``out`` with no temporary (``scratch``: a bool array as ``out``)."""
+        np.less_equal(self._last_t, t_us, out=out)
+        np.less(t_us, self._expiry, out=scratch)
+        np.logical_and(out, scratch, out=out)
 
 
 def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us, clear_behind: bool = False,
@@ -213,12 +220,19 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
                           image.clear_behind, image.invalid == "clear", image.burst_lifetimes, sorted_t, order,
                           n_tiles, out)
         return out
+    if not times.size:
+        return out
     ends = np.searchsorted(events["t"], times[order], side="right")
+    # the checked events' and lifetimes' columns once, then slices of them (contiguous) per frame;
+    # each frame rendered into its own memory (the image_at comparisons, no temporaries)
+    cols = (*columns(events), *(np.ascontiguousarray(lifetimes[f]) for f in ("lifetime_us", "vx_px_s", "vy_px_s",
+                                                                            "valid")))
+    scratch = np.empty(sensor_size.width * sensor_size.height, dtype=bool)
+    flat = out.reshape(times.size, -1)
     start = 0
-    with validated(events, sensor_size):  # slices of checked events: each chunk's check is O(1)
-        for i, end in zip(order, ends):
-            if end > start:
-                image.process(events[start:end], lifetimes[start:end])
-                start = end
-            out[i] = image.image_at(times[i])
+    for i, end in zip(order, ends):
+        if end > start:
+            image._apply(*(c[start:end] for c in cols))
+            start = end
+        image._render(times[i], flat[i], scratch)
     return out
