@@ -386,14 +386,18 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     edge_s = edge_s_per_event * n
     est1 = min(ser)
     # detect's and the edge frames' own bookkeeping, timed directly (the difference of totals is the load's noise):
-    # the O(n) check, the compress of the kept events, the expansion to all events, the compresses for the frames
+    # the O(n) check, the kept events' columns, the expansion to all events, the compresses for the frames
     from evedge.detector._checks import check_events
-    from evedge.detector.pipeline import _expand
+    from evedge.detector._stream_kernels import _expand_lifetimes, _kept_columns
 
     kept = one.kept
     est = one.lifetimes.compress(kept)
-    rest = sum(best_time(f, repeat)[1] for f in (lambda: check_events(events, size), lambda: events.compress(kept),
-                                                  lambda: _expand(est, kept), lambda: one.lifetimes.compress(kept)))
+    est_cols = [np.ascontiguousarray(est[f]) for f in est.dtype.names]
+    out = np.empty_like(one.lifetimes)
+    rest = sum(best_time(f, repeat)[1] for f in (lambda: check_events(events, size),
+                                                  lambda: _kept_columns(events, kept),
+                                                  lambda: _expand_lifetimes(kept, *est_cols, out),
+                                                  lambda: events.compress(kept), lambda: one.lifetimes.compress(kept)))
     cpu1 = est1 + buffer_s + edge_s + rest
     # the edge frames' strips on one thread (all strips in turn) against the serial frames: their extra CPU
     esub, elt = events.compress(kept), one.lifetimes.compress(kept)
@@ -426,7 +430,7 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
           f"edge image {edge_s_per_event * 1e9:.0f}, bookkeeping {rest / n * 1e9:.0f}): {20e6 / full_rate:.1f} cores "
           f"with no parallel loss; {20e6 / full_rate / eff8:.1f} cores at the strips' 8-strip efficiency "
           f"(simulated 8-strip speedup / 8 / extra CPU = {eff8:.2f}), every stage spread over the cores; "
-          f"{with_serial} with detect's serial part (checks, compress, expand and the buffer: {serial_share:.2f} core "
+          f"{with_serial} with detect's serial part (checks, columns, expand and the buffer: {serial_share:.2f} core "
           f"at 20 M ev/s) left on one core (target <= 8)")
 
 
