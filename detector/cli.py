@@ -19,7 +19,8 @@ _MAX_FRAME_BYTES = 4 * 2**30
 _LAST_FLOAT_US = float(np.nextafter(2.0**63, 0))
 #: Memory of a method's per-pixel state by kind (lifetime estimators: buffer, SAE, estimator, edge image;
 #: edge methods: accumulation), bytes per pixel,
-#: and of their per-event outputs (lifetimes, flow, validity, buffer links), bytes per event.
+#: and of a run's per-event memory, bytes per event: a bound with room above the peak that
+#: benchmarks/bench_cli.py measures (the input, its columns, the keep mask, the lifetimes, flow and validity).
 _STATE_BYTES_PER_PIXEL = {"estimator": 160, "edges": 16}
 _BYTES_PER_EVENT = 96
 #: What OUT may hold for detect to replace it (with --overwrite).
