@@ -844,7 +844,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
                   t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None,
-                  reuse=0, reuse_warm=True, reuse_inliers=0, fits=None):
+                  reuse=0, reuse_warm=True, reuse_inliers=0, fits=None, ring_tol=1.0):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -900,7 +900,8 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     Ring refit (``refine``, None = off, pruned when compiled): the fit (gather,
     2-means, RANSAC, the rules) sees the window of half-size ``refine``, and
     :func:`_refine` refits its plane with the points of the window of half-size
-    ``half`` on it (``half`` is then the radius the event reads, for the strips).
+    ``half`` on it (``half`` is then the radius the event reads, for the strips)
+    whose residual is within ``ring_tol`` times the fit's inlier threshold.
 
     Burst reuse (``reuse = k > 0``; ``fits``, float64 of :data:`_FIT_STRIDE` per SAE
     cell: ``a, b`` of the plane stored for the pixel's current burst, NaN = none,
@@ -925,8 +926,12 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     if fits is not None:
         use_fits = reuse > 0 and fits.shape[0] > 0
     fh = half  # the fit's window half-size
+    ring_us = thr_us  # the ring refit's inlier threshold (refine_tolerance times the fit's)
+    ring_rel = thr_rel
     if refine is not None:
         fh = refine
+        ring_us = thr_us * ring_tol
+        ring_rel = thr_rel * ring_tol
     publish = dec.shape[0] > 0
     for j in range(j0, idx.shape[0]):
         k = idx[j]
@@ -973,7 +978,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 if refine is not None:
                     if ok:
                         a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
-                                       thr_us, thr_rel, intercept)
+                                       ring_us, ring_rel, intercept)
         for attempt in range(0 if ok else 2):
             if cont or trial:
                 tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
@@ -995,7 +1000,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             if refine is not None:
                 if ok:
                     a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
-                                   thr_us, thr_rel, intercept)
+                                   ring_us, ring_rel, intercept)
             if not trial:
                 break
             trial = False

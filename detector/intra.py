@@ -402,7 +402,14 @@ history is the start's), slow high-contrast stripes (20 degrees, 10 px/s, r = 3)
 11 px is a strong assumption on real scenes). On the real ``stripes.mat``
 (``robust_params()``) estimated 71.1 -> 71.3 % of the kept events, medians 6.64 / 11.82
 -> 6.69 / 11.87 ms (model-free 6.6 / 11.6). The strips' halo is the ring's radius (the
-events read that far).
+events read that far). ``refine_tolerance`` (default 1, the bytes of before) admits a ring
+point only within that fraction of the fit's inlier threshold, against the rotating star's
+curved time surface: full grid with the line rule (``--intra refine_tolerance=T``,
+2026-12-07, load ~2), goal cells median error / > 2x / signal / noise, ``noise_params()``
+184 / 175 / 89 / 97 (T = 1), 188 / 174 / 89 / 97 (0.5), 189 / 173 / 89 / 96 (0.25);
+``robust_params()`` 170 / 134 / 97 / 69, 172 / 135 / 97 / 71, 174 / 134 / 97 / 73; the
+rotation cells 5.7-6.6 -> 4.9-5.9 % (0.25), r = 1.7 at 2000 px/s 2.7-3.0 -> 3.2-3.4 %.
+Mixed small gains: not in the presets.
 
 Burst reuse (``burst_reuse``, default 2 since 2026-12-03, the setting A below, neutral with the
 defaults; 0 = off, every event fitted, in :func:`robust_params` and :func:`noise_params`; with
@@ -744,6 +751,12 @@ class IntraParams:
         that read the lifetime may decide a few events differently). 9 in
         :func:`robust_params`. Streaming only (a window of
         :func:`fit_window` has no ring). See the module notes ("ring refit").
+    refine_tolerance : float
+        In (0, 1]; the ring's points join the refit when their residual (less the
+        slack) is within this fraction of the fit's inlier threshold; 1 (the
+        default): the fit's threshold itself, the bytes of before this option.
+        Below 1, a curved time surface (a rotating edge) lends the refit fewer of
+        its outer points. Only with ``refine_window``.
     burst_reuse : int
         0: off, every event is fitted (the bytes of before 2026-12-03; the
         presets :func:`robust_params` and :func:`noise_params` keep it off).
@@ -824,6 +837,7 @@ class IntraParams:
     passage_gap: float = 0.0
     ls_first: float = 0.5
     refine_window: int = 0
+    refine_tolerance: float = 1.0
     burst_reuse: int = 2
     burst_warm_refit: bool = True
     burst_reuse_inliers: int = 8
@@ -872,6 +886,7 @@ class IntraParams:
         if self.refine_window and (self.refine_window <= self.window_size or self.refine_window % 2 == 0):
             raise ValueError(f"{own}.refine_window must be 0 (off) or odd and > window_size = {self.window_size}, "
                              f"got {self.refine_window}")
+        check_real(own, "refine_tolerance", self.refine_tolerance, 0.0, 1.0, low_open=True, high_open=False)
         check_fill(own, self.fill_neighbours, self.fill_tolerance, self.fill_agreement, self.fill_arrival, prefix="fill_")
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
@@ -888,7 +903,7 @@ class IntraParams:
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
                      "burst_span_lifetimes", "lifetime_agreement", "passage_gap", "ls_first", "fill_tolerance", "fill_agreement",
-                     "fill_arrival"):
+                     "fill_arrival", "refine_tolerance"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
@@ -1069,13 +1084,15 @@ class IntraPixelLifetime:
                 pr.startup_reach * (pr.window_size // 2), noise_args(pr),  # options off as None: not compiled
                 pr.ls_first,  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
                 pr.window_size // 2 if pr.refine_window else None,  # the ring refit: off as None, not compiled
-                pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers)  # burst reuse (then its plane array)
+                pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers,  # burst reuse (then its plane array)
+                pr.refine_tolerance)  # the ring refit's threshold, after the plane array
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
                           self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half,
-                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:], self._prev_fit)
+                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:-1], self._prev_fit,
+                          args[-1])
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))

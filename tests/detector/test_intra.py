@@ -373,7 +373,8 @@ def ref_ring_refit(sae, plane, x, y, t, size, p: IntraParams, inl, a, b, oldest=
     pts = [(0.0, 0.0, 0.0)] + list(inl)
     c = float(np.mean([q[2] - a * q[0] - b * q[1] for q in pts])) if p.refit_intercept else 0.0
     slack = p.delta_px * (abs(a) + abs(b))
-    thr = p.inlier_threshold_us + p.inlier_threshold_rel * math.hypot(a, b)
+    tol = p.refine_tolerance  # (times each term, as the kernel)
+    thr = p.inlier_threshold_us * tol + p.inlier_threshold_rel * tol * math.hypot(a, b)
     joined = []
     for oy in range(-ring, ring + 1):
         for ox in range(-ring, ring + 1):

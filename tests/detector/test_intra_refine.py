@@ -18,10 +18,12 @@ def _jittered_edge(edge_events, size, jitter_frac, rng=0):
 
 
 @pytest.mark.parametrize("preset", [robust_params, noise_params])
-def test_ring_refit_matches_the_reference(edge_events, random_events, preset):
-    """Kernel = slow reference (dict SAE, numpy least squares) on a jittered edge and on random events."""
+@pytest.mark.parametrize("tolerance", [1.0, 0.3])
+def test_ring_refit_matches_the_reference(edge_events, random_events, preset, tolerance):
+    """Kernel = slow reference (dict SAE, numpy least squares) on a jittered edge and on random events,
+    the ring's threshold the fit's (1) or a fraction of it (refine_tolerance)."""
     size = SensorSize(16, 12)
-    p = preset(refine_window=7, min_points=4, min_inliers=4, seed=3)
+    p = preset(refine_window=7, min_points=4, min_inliers=4, seed=3, refine_tolerance=tolerance)
     ev, _ = _jittered_edge(edge_events, size, 0.05)
     got = estimate_lifetimes(ev, size, p)
     assert_lifetimes_close(got, ref_stream(ev, size, p))
@@ -90,3 +92,20 @@ def test_presets_keep_the_ring_around_a_larger_window():
     assert robust_params(window_size=7, refine_window=0).refine_window == 0
     with pytest.raises(ValueError, match="refine_window"):
         robust_params(refine_window=5)
+
+
+def test_refine_tolerance_selects_ring_points(edge_events):
+    """A tighter ring threshold changes the refits (fewer ring points join) and not the decisions; at 1 it
+    is the option's absence; out of (0, 1] it is a clear error naming the field."""
+    size = SensorSize(30, 24)
+    ev, _ = _jittered_edge(edge_events, size, 0.06, rng=1)
+    full = estimate_lifetimes(ev, size, robust_params())
+    assert estimate_lifetimes(ev, size, robust_params(refine_tolerance=1.0)).tobytes() == full.tobytes()
+    tight = estimate_lifetimes(ev, size, robust_params(refine_tolerance=0.2))
+    both = full["valid"] & tight["valid"]
+    assert both.mean() > 0.5 and not np.array_equal(full["lifetime_us"][both], tight["lifetime_us"][both])
+    for bad in (0.0, -1.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="refine_tolerance"):
+            IntraParams(refine_tolerance=bad)
+    with pytest.raises(TypeError, match="refine_tolerance"):
+        IntraParams(refine_tolerance="0.5")

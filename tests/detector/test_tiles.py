@@ -66,7 +66,7 @@ def test_estimator_strips_on_the_real_recording(stripes_events):
                                     robust_params(split_gap_ratio=1.5, split_jump_check=False, stale_fraction=0.0,
                                                   startup_reach=0.0, refine_window=9),
                                     IntraParams(burst_startup=True, border_px=2), robust_params(),
-                                    noise_params(burst_span_lifetimes=1.5)])
+                                    noise_params(burst_span_lifetimes=1.5, refine_tolerance=0.5)])
 def test_estimator_strips_other_parameters(shapes, params):
     events, size = shapes
     sub = events[:40_000]
@@ -151,7 +151,8 @@ def one_worker_small_turns(monkeypatch):
                                     robust_params(), IntraParams(stale_fraction=0.5), IntraParams(startup_reach=2.0),
                                     noise_params(newer_share_max=1.0, lifetime_agreement=0.0, burst_span_lifetimes=1.5),
                                     noise_params(newer_share_max=1.0, lifetime_agreement=1.3),
-                                    noise_params(lifetime_agreement=0.0), noise_params(burst_span_lifetimes=1.5)])
+                                    noise_params(lifetime_agreement=0.0),
+                                    noise_params(burst_span_lifetimes=1.5, refine_tolerance=0.5)])
 def test_estimator_strips_with_constant_deferrals(shapes, one_worker_small_turns, params):
     """Out-of-order runs, full queues and halo replays waiting for a neighbour: still the serial bytes."""
     events, size = shapes
@@ -178,7 +179,7 @@ def test_estimator_strips_with_constant_deferrals(shapes, one_worker_small_turns
     assert deferred > 1000 and waited > 5  # the paths under test did run (events deferred; turns with none ready)
 
 
-@pytest.mark.parametrize("params", [IntraParams(), noise_params(burst_span_lifetimes=1.5)])
+@pytest.mark.parametrize("params", [IntraParams(), noise_params(burst_span_lifetimes=1.5, refine_tolerance=0.5)])
 def test_estimator_strips_streamed_every_tile_count(sim_stripes, params):
     """Chunked through the streaming estimator with 2/3/5/16 strips (the halo state crosses chunks) == one shot;
     also with every rule of robust_params() and the noise rules on (startup_reach keeps the stream's start)."""
