@@ -154,7 +154,7 @@ def simulate_strips(events, sensor_size, n_tiles: int, half: int = 2, per_polari
     own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - half, 0)
     hi = np.minimum(own[:, 1] + half, height)
-    idx, starts = _strip_index(y, lo, hi)
+    idx, starts, _ = _strip_index(y, lo, hi)
     clock, waited, deferred = _schedule(x, y, p, prev_same, needs_own, idx, starts, lo,
                                         own[:, 0].copy(), own[:, 1].copy(), hi - lo, width, half, per_polarity,
                                         min(queue_max, x.size), halo_cost,

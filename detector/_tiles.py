@@ -96,8 +96,7 @@ def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
     row); where the strips are cut changes no result, only how evenly the work
     is shared.
     """
-    counts = np.bincount(np.asarray(y, np.int64), minlength=height)[:height]
-    cum = np.cumsum(counts)
+    cum = np.cumsum(_row_counts(np.asarray(y), height)) if height else np.zeros(0, np.int64)
     edges = np.zeros(n_tiles + 1, np.int64)
     edges[-1] = height
     total = cum[-1] if cum.size else 0
@@ -105,6 +104,35 @@ def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
         c = int(np.searchsorted(cum, total * i / n_tiles, side="left")) + 1 if total else (height * i) // n_tiles
         edges[i] = min(max(c, edges[i - 1] + 1), height - (n_tiles - i))
     return np.stack([edges[:-1], edges[1:]], axis=1)
+
+
+#: Events per chunk of the parallel passes over all events (:func:`_row_counts`, :func:`_strip_index`,
+#: :func:`_put_owned`): a chunk's work is independent of the others', its place in the output fixed by
+#: counts taken first, so the result is the serial one for any number of threads.
+_CHUNK_EVENTS = 1 << 15
+
+
+@njit(cache=True)
+def _n_chunks(n):
+    return (n + _CHUNK_EVENTS - 1) // _CHUNK_EVENTS
+
+
+@njit(parallel=True, cache=True)
+def _row_counts(y, height):
+    """Events per row (``np.bincount(y, minlength=height)[:height]``; rows outside ``[0, height)`` ignored)."""
+    nc = _n_chunks(y.shape[0])
+    part = np.zeros((nc, height), np.int64)
+    for c in prange(nc):
+        row = np.zeros(height, np.int64)  # the chunk's own counts, written once (no shared cache lines)
+        for k in range(c * _CHUNK_EVENTS, min(y.shape[0], (c + 1) * _CHUNK_EVENTS)):
+            r = y[k]
+            if 0 <= r < height:
+                row[r] += 1
+        part[c] = row
+    out = np.zeros(height, np.int64)
+    for c in range(nc):
+        out += part[c]
+    return out
 
 
 # ---------------------------------------------------------------- event buffer
@@ -158,7 +186,7 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
     own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - 1, 0)
     hi = np.minimum(own[:, 1] + 1, height)
-    idx, starts = _strip_index(y, lo, hi)
+    idx, starts, _ = _strip_index(y, lo, hi)
     supported = np.zeros(x.shape[0], bool)
     exact = x.shape[0] > 0 and one_shot_exact(t[0], t[-1], tau_us)
     narrow = x.shape[0] > 0 and narrow_state(t[0], t[-1], tau_us, width, height)
@@ -235,7 +263,7 @@ def edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, width: int, height: int, cl
     own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - 1, 0)
     hi = np.minimum(own[:, 1] + 1, height)
-    idx, starts = _strip_index(y, lo, hi)
+    idx, starts, _ = _strip_index(y, lo, hi)
     _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width,
                 clear_behind, invalid_clears, burst, times, order, out)
 
@@ -550,12 +578,9 @@ def _intra_parallel(n_threads, turn, x, y, t, p, g0, idx, starts, off, sae, prev
 
 
 @njit(cache=True)
-def _strip_index(y, lo, hi):
-    """The events of every strip's rows ``[lo, hi)`` in time order, concatenated, and the strips' offsets.
-
-    The strips are sorted and overlap only in their halos, so the strips holding
-    a row are a contiguous range, found once per row.
-    """
+def _row_strips(lo, hi):
+    """Per row: the first and the last strip whose rows ``[lo, hi)`` hold it (strips sorted, overlapping
+    only in their halos: the strips holding a row are a contiguous range)."""
     n_tiles = lo.shape[0]
     height = hi[-1]
     first = np.full(height, n_tiles, np.int64)
@@ -564,32 +589,68 @@ def _strip_index(y, lo, hi):
         for r in range(lo[s], hi[s]):
             first[r] = min(first[r], s)
             last[r] = max(last[r], s)
+    return first, last
+
+
+@njit(parallel=True, cache=True)
+def _strip_index(y, lo, hi):
+    """The events of every strip's rows ``[lo, hi)`` in time order, concatenated, the strips' offsets, and
+    where each chunk's events of each strip begin.
+
+    Returns ``(idx, starts, off)``: strip ``s`` holds ``idx[starts[s]:starts[s + 1]]``;
+    the events of chunk ``c`` (events ``c * _CHUNK_EVENTS`` on) in strip ``s`` start
+    at ``idx[off[c, s]]``. Two passes over chunks in parallel (count, then fill at
+    the offsets the counts give): the serial order for any number of threads.
+    """
+    n_tiles = lo.shape[0]
+    first, last = _row_strips(lo, hi)
+    n = y.shape[0]
+    nc = _n_chunks(n)
+    cnt = np.zeros((nc, n_tiles), np.int64)
+    for c in prange(nc):
+        own = np.zeros(n_tiles, np.int64)  # the chunk's own counts, written once
+        for k in range(c * _CHUNK_EVENTS, min(n, (c + 1) * _CHUNK_EVENTS)):
+            for s in range(first[y[k]], last[y[k]] + 1):
+                own[s] += 1
+        cnt[c] = own
     starts = np.zeros(n_tiles + 1, np.int64)
-    for k in range(y.shape[0]):
-        for s in range(first[y[k]], last[y[k]] + 1):
-            starts[s + 1] += 1
+    off = np.zeros((nc, n_tiles), np.int64)
     for s in range(n_tiles):
-        starts[s + 1] += starts[s]
+        acc = starts[s]
+        for c in range(nc):
+            off[c, s] = acc
+            acc += cnt[c, s]
+        starts[s + 1] = acc
     idx = np.empty(starts[-1], np.int64)
-    fill = starts[:-1].copy()
-    for k in range(y.shape[0]):
-        for s in range(first[y[k]], last[y[k]] + 1):
-            idx[fill[s]] = k
-            fill[s] += 1
-    return idx, starts
+    for c in prange(nc):
+        fill = off[c].copy()
+        for k in range(c * _CHUNK_EVENTS, min(n, (c + 1) * _CHUNK_EVENTS)):
+            for s in range(first[y[k]], last[y[k]] + 1):
+                idx[fill[s]] = k
+                fill[s] += 1
+    return idx, starts, off
 
 
-@njit(cache=True)
-def _put_owned(idx, starts, y, own_lo, own_hi, slot_lt, slot_vx, slot_vy, slot_valid, lt, vx, vy, valid):
-    """Each strip's outputs of its owned events (slots aligned with ``idx``) into the per-event arrays."""
-    for s in range(own_lo.shape[0]):
-        for j in range(starts[s], starts[s + 1]):
-            k = idx[j]
-            if own_lo[s] <= y[k] < own_hi[s]:
-                lt[k] = slot_lt[j]
-                vx[k] = slot_vx[j]
-                vy[k] = slot_vy[j]
-                valid[k] = slot_valid[j]
+@njit(parallel=True, cache=True)
+def _put_owned(y, lo, hi, own_lo, own_hi, off, slot_lt, slot_vx, slot_vy, slot_valid, lt, vx, vy, valid):
+    """Each strip's outputs of its owned events (slots aligned with :func:`_strip_index`'s ``idx``) into the
+    per-event arrays; a gather in parallel over chunks of events (``off`` from :func:`_strip_index`)."""
+    n_tiles = lo.shape[0]
+    first, last = _row_strips(lo, hi)
+    owner = np.empty(hi[-1], np.int64)
+    for s in range(n_tiles):
+        owner[own_lo[s]:own_hi[s]] = s
+    for c in prange(off.shape[0]):
+        fill = off[c].copy()  # slot of the chunk's next event in each strip
+        for k in range(c * _CHUNK_EVENTS, min(y.shape[0], (c + 1) * _CHUNK_EVENTS)):
+            r = y[k]
+            j = fill[owner[r]]
+            lt[k] = slot_lt[j]
+            vx[k] = slot_vx[j]
+            vy[k] = slot_vy[j]
+            valid[k] = slot_valid[j]
+            for s in range(first[r], last[r] + 1):
+                fill[s] += 1
 
 
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
@@ -618,7 +679,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     lo = np.maximum(own_lo - half, 0)
     hi = np.minimum(own_hi + half, height)
     rows = hi - lo
-    idx, starts = _strip_index(y, lo, hi)
+    idx, starts, chunk_off = _strip_index(y, lo, hi)
     off = np.zeros(n_tiles + 1, np.int64)
     off[1:] = np.cumsum(planes * rows * width)
     roff = np.zeros(n_tiles + 1, np.int64)
@@ -650,7 +711,7 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
                     starts, off, *local, np.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
                     np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
                     np.empty((2, x.shape[0])), width, height, tuple(kernel_args), *slot_outs, stats, work, par)
-    _put_owned(idx, starts, y, own_lo, own_hi, *slot_outs, *outs)
+    _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
     for s in range(n_tiles):
         a, b = own_lo[s], own_hi[s]
         for g, l in zip(state, local):
