@@ -13,7 +13,7 @@ pixel side by side (a row of three neighbours is 48 contiguous bytes):
 """
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 NEVER = np.iinfo(np.int64).min
 FOREVER = np.iinfo(np.int64).max  # the backward pass's "never fires"
@@ -201,17 +201,24 @@ def _support_after(x, y, t, p, supported, state, t0, width, height, tau_us):
     buffered rule; ``state`` filled with its "never fires" (the dtype's maximum).
     Exact when no event lies within ``tau_us`` of the int64 range's ends (no
     wrap-around, and the sentinel is later than every window): :func:`one_shot_exact`.
+    Checks the coordinates (the state's bounds) on its way: returns -1, or the index
+    of the last event outside the sensor, where it stops.
     """
     row = width + 2
     plane = (height + 2) * row
     for k in range(x.shape[0] - 1, -1, -1):
+        xk = x[k]
+        yk = y[k]
+        if xk < 0 or xk >= width or yk < 0 or yk >= height:
+            return k  # (only unchecked events, :func:`_passes_both`: the forward pass names the error)
         rel = t[k] - t0
         hi = rel + tau_us
-        c = p[k] * plane + (y[k] + 1) * row + (x[k] + 1)
+        c = p[k] * plane + (yk + 1) * row + (xk + 1)
         supported[k] |= ((state[c - row - 1] <= hi) | (state[c - row] <= hi) | (state[c - row + 1] <= hi)
                          | (state[c - 1] <= hi) | (state[c + 1] <= hi)
                          | (state[c + row - 1] <= hi) | (state[c + row] <= hi) | (state[c + row + 1] <= hi))
         state[c] = rel
+    return -1
 
 
 @njit(cache=True)
@@ -240,16 +247,46 @@ def _two_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narr
                    forward_only)
 
 
-def run_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narrow):
+@njit(parallel=True, cache=True)
+def _passes_both(x, y, t, p, supported, state_before, state_after, t0, width, height, tau_us):
+    """:func:`_passes` (both passes) with the two passes at once on two threads, each on its own state and
+    mask, then or-ed: the same bytes. The backward pass may run on events the forward pass finds bad (it
+    checks their coordinates itself); the forward pass's result is returned as :func:`_passes`'."""
+    n = x.shape[0]
+    after = np.zeros(n, np.bool_)
+    bad = np.full(2, -1, np.int64)
+    for i in prange(2):
+        if i == 0:
+            bad[0] = _support_before(x, y, t, p, supported, state_before, t0, width, height, tau_us)
+        else:
+            bad[1] = _support_after(x, y, t, p, after, state_after, t0, width, height, tau_us)
+    if bad[0] >= 0:
+        return bad[0]
+    nc = (n + _OR_CHUNK - 1) // _OR_CHUNK
+    for c in prange(nc):
+        for k in range(c * _OR_CHUNK, min(n, (c + 1) * _OR_CHUNK)):
+            supported[k] |= after[k]
+    return -1
+
+
+#: Events per chunk of :func:`_passes_both`'s final or (chunks in parallel).
+_OR_CHUNK = 1 << 16
+
+
+def run_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narrow, threads=1):
     """:func:`_two_passes` from Python, with the state made in numpy: only the state type used is compiled.
 
     (:func:`_two_passes` compiles both, a second or more on a cold start; the strips call it.)
+    ``threads > 1`` with both passes: :func:`_passes_both` (the passes at once, the same bytes).
     """
     size = 2 * (height + 2) * (width + 2)
     if narrow:
         state, forever, t0 = np.full(size, I32_MIN, np.int32), int(I32_MAX), int(t[0]) if t.shape[0] else 0
     else:
         state, forever, t0 = np.full(size, NEVER, np.int64), int(FOREVER), 0
+    if threads > 1 and not forward_only:
+        return _passes_both(x, y, t, p, supported, state, np.full(size, forever, state.dtype), t0, width, height,
+                            tau_us)
     return _passes(x, y, t, p, supported, state, forever, t0, width, height, tau_us, forward_only)
 
 

@@ -8,7 +8,7 @@ code is never cached inside these kernels).
 """
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 @njit(cache=True)
 def _fill_slots(events, width, height, t_last, has_until, until, ev, x, y, t, p, a):
@@ -71,16 +71,10 @@ def _pack_lifetimes(lt, vx, vy, valid, out):
         o.valid = valid[k]
 
 
-@njit(cache=True)
-def _kept_columns(events, kept):
-    """The kept events' x, y, t, p as a (4, m) int64 array (its rows: the estimator's columns), in one pass."""
-    m = 0
-    for k in range(kept.shape[0]):
-        if kept[k]:
-            m += 1
-    cols = np.empty((4, m), np.int64)
-    i = 0
-    for k in range(kept.shape[0]):
+@njit(cache=True, inline="always")
+def _kept_chunk(events, kept, cols, lo, hi, i):
+    """The kept events among ``[lo, hi)`` into ``cols[:, i:]``, in order."""
+    for k in range(lo, hi):
         if kept[k]:
             e = events[k]
             cols[0, i] = e.x
@@ -88,14 +82,12 @@ def _kept_columns(events, kept):
             cols[2, i] = e.t
             cols[3, i] = 1 if e.p else 0
             i += 1
-    return cols
 
 
-@njit(cache=True)
-def _expand_lifetimes(kept, lt, vx, vy, valid, out):
-    """``out`` (LIFETIME_DTYPE, aligned with all events): the kept events' columns, no estimate elsewhere."""
-    i = 0
-    for k in range(kept.shape[0]):
+@njit(cache=True, inline="always")
+def _expand_chunk(kept, lt, vx, vy, valid, out, lo, hi, i):
+    """``out[lo:hi]``: the kept events' columns from index ``i`` on, no estimate elsewhere."""
+    for k in range(lo, hi):
         o = out[k]
         if kept[k]:
             o.lifetime_us = lt[i]
@@ -108,3 +100,54 @@ def _expand_lifetimes(kept, lt, vx, vy, valid, out):
             o.vx_px_s = np.nan
             o.vy_px_s = np.nan
             o.valid = False
+
+
+@njit(cache=True)
+def _kept_columns(events, kept):
+    """The kept events' x, y, t, p as a (4, m) int64 array (its rows: the estimator's columns), in one pass."""
+    m = 0
+    for k in range(kept.shape[0]):
+        if kept[k]:
+            m += 1
+    cols = np.empty((4, m), np.int64)
+    _kept_chunk(events, kept, cols, 0, kept.shape[0], 0)
+    return cols
+
+
+@njit(cache=True)
+def _expand_lifetimes(kept, lt, vx, vy, valid, out):
+    """``out`` (LIFETIME_DTYPE, aligned with all events): the kept events' columns, no estimate elsewhere."""
+    _expand_chunk(kept, lt, vx, vy, valid, out, 0, kept.shape[0], 0)
+
+
+#: Events per chunk of the parallel forms (:func:`_kept_columns_par`, :func:`_expand_lifetimes_par`).
+_CHUNK = 1 << 15
+
+
+@njit(parallel=True, cache=True)
+def _kept_offsets(kept):
+    """Where each chunk's kept events start among the kept ones (length chunks + 1: the total last)."""
+    nc = (kept.shape[0] + _CHUNK - 1) // _CHUNK
+    cnt = np.zeros(nc + 1, np.int64)
+    for c in prange(nc):
+        m = 0
+        for k in range(c * _CHUNK, min(kept.shape[0], (c + 1) * _CHUNK)):
+            m += 1 if kept[k] else 0
+        cnt[c + 1] = m
+    return np.cumsum(cnt)
+
+
+@njit(parallel=True, cache=True)
+def _kept_columns_par(events, kept, off):
+    """:func:`_kept_columns` over chunks in parallel (``off`` from :func:`_kept_offsets`): the same array."""
+    cols = np.empty((4, off[-1]), np.int64)
+    for c in prange(off.shape[0] - 1):
+        _kept_chunk(events, kept, cols, c * _CHUNK, min(kept.shape[0], (c + 1) * _CHUNK), off[c])
+    return cols
+
+
+@njit(parallel=True, cache=True)
+def _expand_lifetimes_par(kept, lt, vx, vy, valid, out, off):
+    """:func:`_expand_lifetimes` over chunks in parallel (``off`` from :func:`_kept_offsets`): the same bytes."""
+    for c in prange(off.shape[0] - 1):
+        _expand_chunk(kept, lt, vx, vy, valid, out, c * _CHUNK, min(kept.shape[0], (c + 1) * _CHUNK), off[c])

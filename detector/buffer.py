@@ -419,22 +419,37 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     except (TypeError, ValueError):
         check_events(events, sensor_size)  # the events' error first, as their checks come first
         raise
-    if n_tiles > 1 and plain:
+    if _strips(events, sensor_size, params, n_tiles) and plain:
         events = check_events(events, sensor_size)
     return _filter(events, sensor_size, params, n_tiles)
+
+
+def _strips(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int) -> bool:
+    """Whether :func:`_filter` runs the strips (:func:`~evedge.detector._tiles.filter_tiled`).
+
+    With ``n_tiles > 1`` the buffered rule, when the one-shot passes are exact and no
+    line rule follows, runs its two passes at once on two threads instead
+    (:func:`~evedge.detector._buffer_kernels._passes_both`): no column copies, no
+    strips' gathering (the same bytes either way).
+    """
+    if n_tiles == 1:
+        return False
+    if params.mode == "causal" or params.line_window_us or events.shape[0] == 0:
+        return True
+    return not one_shot_exact(events["t"][0], events["t"][-1], params.tau_min_us)
 
 
 def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int) -> np.ndarray:
     """:func:`filter_events` on checked parameters and events of :data:`EVENT_DTYPE`.
 
-    Serially (``n_tiles == 1``) the events need not be checked: the first pass checks
-    them (range and order, in the same pass) and, on a bad event, :func:`check_events`
-    raises its error.
+    Without strips (``n_tiles == 1``, or the two passes at once, :func:`_strips`) the
+    events need not be checked: the first pass checks them (range and order, in the same
+    pass) and, on a bad event, :func:`check_events` raises its error.
     """
     w, h = sensor_size.width, sensor_size.height
     n = events.shape[0]
     causal = params.mode == "causal"
-    if n_tiles > 1:
+    if _strips(events, sensor_size, params, n_tiles):
         x, y, t, p = columns(events)
         return filter_tiled(x, y, t, p, w, h, params.tau_min_us, causal, n_tiles,
                             params.line_window_us, params.line_tolerance, params.line_quiet, params.line_count)
@@ -446,7 +461,8 @@ def _filter(events: np.ndarray, sensor_size, params: BufferParams, n_tiles: int)
     x, y, t, p = events["x"], events["y"], events["t"], events["p"]
     tau = params.tau_min_us
     exact = one_shot_exact(t[0], t[-1], tau)  # (t[-1] may not be the last time yet: then the checks fail)
-    bad = run_passes(x, y, t, p, supported, w, h, tau, causal or not exact, narrow_state(t[0], t[-1], tau, w, h))
+    bad = run_passes(x, y, t, p, supported, w, h, tau, causal or not exact, narrow_state(t[0], t[-1], tau, w, h),
+                     threads=n_tiles)
     if bad >= 0:
         check_events(events, sensor_size)  # raises, naming the first bad event
         raise RuntimeError(f"events: event {bad} failed the buffer's checks but passed check_events (a bug)")

@@ -18,7 +18,8 @@ import numpy as np
 from evedge.events import EVENT_DTYPE
 
 from ._checks import check_events, check_not_before, check_sensor_size, validated
-from ._stream_kernels import _expand_lifetimes, _kept_columns, _pack_lifetimes
+from ._stream_kernels import (_expand_lifetimes, _expand_lifetimes_par, _kept_columns, _kept_columns_par,
+                              _kept_offsets, _pack_lifetimes)
 from ._tiles import check_n_tiles
 from .buffer import EventBuffer
 from .edges import EdgeImage
@@ -126,10 +127,11 @@ def make_method(name: str, sensor_size, params=None, *, kind=None):
     return entry.factory(check_sensor_size(sensor_size), **method_params(name, params))
 
 
-def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None) -> np.ndarray:
+def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None, n_tiles: int = 1) -> np.ndarray:
     """One-shot keep mask of a registered noise filter over a whole event array.
 
-    Uses the entry's ``keep_mask`` metadata when it has one; otherwise streams
+    Uses the entry's ``keep_mask`` metadata when it has one (with ``n_tiles`` when
+    the entry takes it: the same mask, on more threads); otherwise streams
     the events through the filter and marks the released ones (a released
     event is matched to the earliest unmatched input with the same x, y, t, p;
     identical events are indistinguishable anyway).
@@ -140,6 +142,8 @@ def keep_mask(filter_name: str, events: np.ndarray, sensor_size, params=None) ->
     events = check_events(events, sensor_size)
     with validated(events, sensor_size):  # the filter's own check is then O(1)
         if "keep_mask" in entry.metadata:
+            if n_tiles > 1 and "n_tiles" in entry.metadata.get("extra_params", ()):
+                kw = {**kw, "n_tiles": n_tiles}
             return np.asarray(entry.metadata["keep_mask"](events, sensor_size, **kw), dtype=bool)
         flt = entry.factory(sensor_size, **kw)
         released = np.concatenate([np.asarray(flt.process(events), dtype=EVENT_DTYPE),
@@ -239,9 +243,8 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     n_tiles : int
         Row strips run in parallel by the estimator when it can (``intra``;
         :mod:`evedge.detector._tiles`); default 1. Any value gives the same
-        bytes. The noise filter runs serially (the event buffer's one-shot
-        passes are cheaper than its strips; ``filter_events(..., n_tiles)``
-        still offers them).
+        bytes. With more than one, the event buffer runs its two one-shot
+        passes at once on two threads (:func:`~evedge.detector.buffer.filter_events`).
 
     Returns
     -------
@@ -263,16 +266,22 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     estimator = make_method(method, sensor_size, _with_tiles(method, params, n_tiles), kind="estimator")
     events = check_events(events, sensor_size)  # the one O(n) check: the stages' own checks are O(1)
     with validated(events, sensor_size):
-        # the filter runs serially: the event buffer's one-shot passes (~18 ns/event) cost less than its
-        # strips' gathering and bookkeeping (benchmarks/bench_buffer.py); same bytes either way
-        kept = keep_mask(flt, events, sensor_size, buffer_params) if flt else np.ones(events.shape[0], bool)
+        # the event buffer: its one-shot passes, at once on two threads with n_tiles > 1 (its strips' gathering
+        # and bookkeeping cost more than the passes, benchmarks/bench_buffer.py); same bytes either way
+        kept = (keep_mask(flt, events, sensor_size, buffer_params, n_tiles=n_tiles) if flt
+                else np.ones(events.shape[0], bool))
         if flt and type(estimator) is IntraPixelLifetime and events.shape[0]:
             # the built-in estimator on the kept events' columns, its columns scattered back into the
             # records in one pass each (no record copy, column unpacking, packing or field scatters)
-            cols = _kept_columns(events, kept)
+            # (with n_tiles > 1 over chunks of events in parallel: the same arrays)
+            off = _kept_offsets(kept) if n_tiles > 1 else None
+            cols = _kept_columns(events, kept) if off is None else _kept_columns_par(events, kept, off)
             out = np.empty(events.shape[0], dtype=LIFETIME_DTYPE)
             if cols.shape[1]:  # (the estimator's _estimate takes a non-empty chunk)
-                _expand_lifetimes(kept, *estimator._estimate(*cols), out)
+                if off is None:
+                    _expand_lifetimes(kept, *estimator._estimate(*cols), out)
+                else:
+                    _expand_lifetimes_par(kept, *estimator._estimate(*cols), out, off)
             else:
                 _expand_lifetimes(kept, *(np.empty(0),) * 3, np.empty(0, bool), out)
             return DetectionResult(out, kept)

@@ -155,6 +155,8 @@ def find_out_of_sensor(x, y, sensor_size: SensorSize) -> tuple[str, int, int] | 
     """
     for axis, col, limit in (("x", x, sensor_size.width), ("y", y, sensor_size.height)):
         col = np.asarray(col)
+        if col.size == 0 or (col.min() >= 0 and col.max() < limit):
+            continue  # (two reductions, no temporary array: the common case)
         bad = np.flatnonzero((col < 0) | (col >= limit))
         if bad.size:
             return axis, int(bad[0]), int(bad.size)

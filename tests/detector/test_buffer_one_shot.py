@@ -250,3 +250,28 @@ def test_streaming_strided_and_read_only_chunks(mode):
         chunks = np.array_split(stream, 13)
         got = np.concatenate([buf.process(c) for c in chunks] + [buf.flush()])
         assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_both_passes_at_once_equal_the_serial_passes(mode):
+    """n_tiles > 1, buffered: the forward and backward passes on two threads (_passes_both), each with its own
+    state, then or-ed: the serial bytes, with the int32 state of a large sensor and the int64 one; a bad
+    coordinate met first by the backward pass (the last event) still gives check_events' error, no crash."""
+    from evedge.detector import detect
+    from evedge.detector._buffer_kernels import narrow_state
+
+    for size, n in ((SensorSize(640, 480), 60_000), (SensorSize(16, 12), 5_000)):
+        ev = _random(size, n, 40 * n, 7)
+        tau = 2_000
+        params = BufferParams(tau_min_us=tau, mode=mode)
+        want = _chain_mask(ev, size, tau, mode == "causal")
+        assert 0 < want.sum() < want.size
+        assert narrow_state(ev["t"][0], ev["t"][-1], tau, size.width, size.height) == (size.width == 640)
+        for n_tiles in (2, 3):
+            assert filter_events(ev, size, params, n_tiles=n_tiles).tobytes() == want.tobytes()
+        for field, value in (("x", size.width), ("y", -1)):
+            bad = ev.copy()
+            bad[field][-1] = value
+            want_msg = _message(lambda: check_events(bad, size))
+            assert _message(lambda: filter_events(bad, size, params, n_tiles=2)) == want_msg
+            assert _message(lambda: detect(bad, size, n_tiles=2)) == want_msg

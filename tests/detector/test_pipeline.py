@@ -7,7 +7,7 @@ import pytest
 
 from evedge.detector import (BufferParams, Detector, EdgeImage, IntraParams, detect, edge_frames, estimate_lifetimes,
                              filter_events)
-from evedge.events import SensorSize
+from evedge.events import SensorSize, make_events
 
 
 def _noisy_edges(edge_events, random_events):
@@ -305,3 +305,31 @@ def test_streaming_detector_chunk_checks(edge_events):
     a, b = det.process(ev[43:], until_us=int(ev["t"][-1])), ref.process(ev[43:], until_us=int(ev["t"][-1]))
     assert a[0].tobytes() == b[0].tobytes() and a[1].tobytes() == b[1].tobytes()
     assert det.flush()[1].tobytes() == ref.flush()[1].tobytes()
+
+
+def test_kept_columns_and_expansion_in_parallel_chunks():
+    """detect's bookkeeping with n_tiles > 1 (chunks of events in parallel, at offsets counted first) gives the
+    serial arrays: masks keeping all, none, or some, over more than one chunk and a partial last one."""
+    from evedge.detector._stream_kernels import (_CHUNK, _expand_lifetimes, _expand_lifetimes_par, _kept_columns,
+                                                 _kept_columns_par, _kept_offsets)
+    from evedge.detector.result import LIFETIME_DTYPE
+
+    rng = np.random.default_rng(4)
+    n = 3 * _CHUNK + 11
+    ev = make_events(rng.integers(0, 50, n), rng.integers(0, 40, n), np.sort(rng.integers(0, 10**6, n)),
+                     rng.random(n) < 0.5)
+    for kept in (rng.random(n) < 0.3, np.ones(n, bool), np.zeros(n, bool), np.arange(n) >= n - 7):
+        off = _kept_offsets(kept)
+        assert off.shape == (4 + 1,) and off[-1] == kept.sum()
+        cols = _kept_columns(ev, kept)
+        assert np.array_equal(_kept_columns_par(ev, kept, off), cols)
+        assert np.array_equal(cols, np.stack([ev[f][kept].astype(np.int64) for f in ("x", "y", "t", "p")]))
+        m = int(kept.sum())
+        lt, vx, vy = rng.random(m), rng.random(m), rng.random(m)
+        valid = rng.random(m) < 0.5
+        a = np.empty(n, LIFETIME_DTYPE)
+        b = np.empty(n, LIFETIME_DTYPE)
+        _expand_lifetimes(kept, lt, vx, vy, valid, a)
+        _expand_lifetimes_par(kept, lt, vx, vy, valid, b, off)
+        assert a.tobytes() == b.tobytes()
+        assert np.array_equal(a["lifetime_us"][kept], lt) and np.isnan(a["lifetime_us"][~kept]).all()
