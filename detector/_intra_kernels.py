@@ -41,6 +41,7 @@ from numba import njit
 from evedge._splitmix import _splitmix64
 
 from ._atomic import _store_release
+from ._borrow import _borrowed
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, _lifetime_agrees, _newer_count
 
 _NEVER = np.iinfo(np.int64).min
@@ -922,6 +923,10 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     ``reuse = 0`` (or empty ``fits``): off, the same bytes as without.
     """
     log_fail = _log_fail(stop_prob)
+    # the scratch arrays go to a non-inlined fit per event: without reference counts (two locked
+    # instructions per array and call, :mod:`._borrow`); the caller keeps them alive
+    wf = _borrowed(wf)
+    wi = _borrowed(wi)
     use_fits = False
     if fits is not None:
         use_fits = reuse > 0 and fits.shape[0] > 0
