@@ -25,7 +25,8 @@ Beside them, in the same run:
   CPU clocks (in turns that ran events / waiting), the strips' extra CPU per
   event against the serial estimator (thread CPU, alternated), the share of
   events deferred, and from these the speedup expected on idle cores (Amdahl:
-  the serial bookkeeping of ``detect``, the buffer's strips, the estimator's);
+  ``detect``'s bookkeeping, the check serial, the columns and the expansion on the
+  threads; the buffer with its two passes at once; the estimator's strips);
 * the projection to a Prophesee Gen4 sensor (1280x720, 20 M events/s): cores
   needed = 20e6 x the measured CPU time per event of the full pipeline (buffer +
   estimator + edge image) / the strips' efficiency on 8 cores (simulated 8-strip
@@ -378,26 +379,34 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
           + "; ".join(f"{k} strips {v[0]:.2f}x (workers busy {v[1]:.2f}, deferred {v[2]:.2f})"
                       for k, v in sims.items())
           + f"; / the extra CPU ({overhead:.3f}x) -> estimator on {tiles} idle cores {sims[tiles][0] / overhead:.2f}x")
-    # detect + edges = serial bookkeeping + the serial buffer (detect runs it serially: its one-shot passes
-    # cost less than its strips) + estimator strips + edge strips
+    # detect + edges = bookkeeping + the buffer (with n_tiles > 1 its two passes at once on two threads) +
+    # estimator strips + edge strips
     per_strip = [np.count_nonzero((events["y"] >= a) & (events["y"] < b))
                  for a, b in balanced_strips(events["y"], size.height, tiles)]
     edge_speedup = events.size / max(per_strip) if tiles <= threads else threads
     edge_s = edge_s_per_event * n
     est1 = min(ser)
     # detect's and the edge frames' own bookkeeping, timed directly (the difference of totals is the load's noise):
-    # the O(n) check, the kept events' columns, the expansion to all events, the compresses for the frames
+    # the O(n) check, the kept events' columns, the expansion to all events, the compresses for the frames; the
+    # columns and the expansion serially (CPU) and as detect runs them on strips (chunks in parallel, wall)
     from evedge.detector._checks import check_events
-    from evedge.detector._stream_kernels import _expand_lifetimes, _kept_columns
+    from evedge.detector._stream_kernels import (_expand_lifetimes, _expand_lifetimes_par, _kept_columns,
+                                                 _kept_columns_par, _kept_offsets)
 
     kept = one.kept
     est = one.lifetimes.compress(kept)
     est_cols = [np.ascontiguousarray(est[f]) for f in est.dtype.names]
     out = np.empty_like(one.lifetimes)
-    rest = sum(best_time(f, repeat)[1] for f in (lambda: check_events(events, size),
-                                                  lambda: _kept_columns(events, kept),
-                                                  lambda: _expand_lifetimes(kept, *est_cols, out),
-                                                  lambda: events.compress(kept), lambda: one.lifetimes.compress(kept)))
+    serial_part = sum(best_time(f, repeat)[1] for f in (lambda: check_events(events, size),
+                                                         lambda: events.compress(kept),
+                                                         lambda: one.lifetimes.compress(kept)))
+    columns_1 = sum(best_time(f, repeat)[1] for f in (lambda: _kept_columns(events, kept),
+                                                      lambda: _expand_lifetimes(kept, *est_cols, out)))
+    off = _kept_offsets(kept)
+    columns_k = sum(best_time(f, repeat)[0] for f in (lambda: _kept_columns_par(events, kept, _kept_offsets(kept)),
+                                                      lambda: _expand_lifetimes_par(kept, *est_cols, out, off)))
+    rest = serial_part + columns_1
+    buffer_k = best_time(lambda: filter_events(events, size, n_tiles=tiles), repeat)[0]
     cpu1 = est1 + buffer_s + edge_s + rest
     # the edge frames' strips on one thread (all strips in turn) against the serial frames: their extra CPU
     esub, elt = events.compress(kept), one.lifetimes.compress(kept)
@@ -415,13 +424,18 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
     edge_extra = float(np.median(e_ratio))
     print(f"  edge frames on {tiles} strips: thread CPU {edge_extra:.2f}x the serial frames (all strips on one "
           f"thread, median of {len(e_ratio)} pairs: each strip gathers its events' 8 columns and has its own state)")
-    expect = cpu1 / (rest + buffer_s + est1 * overhead / sims[tiles][0] + edge_s * edge_extra / edge_speedup)
+    expect = cpu1 / (serial_part + columns_k + buffer_k + est1 * overhead / sims[tiles][0]
+                     + edge_s * edge_extra / edge_speedup)
     print(f"  detect + edge frames on {tiles} idle cores, EXPECTED (Amdahl) {expect:.2f}x (serial bookkeeping "
-          f"{rest * 1e3:.1f} ms, buffer {buffer_s * 1e3:.1f} ms serial, edge frames "
+          f"{serial_part * 1e3:.1f} ms, columns and expansion {columns_1 * 1e3:.1f} ms CPU -> {columns_k * 1e3:.1f} "
+          f"ms wall on the threads, buffer {buffer_s * 1e3:.1f} ms CPU -> {buffer_k * 1e3:.1f} ms wall with its "
+          f"passes at once, edge frames "
           f"{edge_s * 1e3:.1f} ms at {edge_speedup:.2f}x / {edge_extra:.2f}, estimator {est1 * 1e3:.1f} ms at "
           f"{sims[tiles][0]:.2f}x / {overhead:.3f}; target >= 1.8)")
     eff8 = sims[8][0] / 8 / overhead
-    serial_s = (rest + buffer_s) / n  # s per event of what detect runs serially: bookkeeping and the buffer
+    # s per event of what detect runs on one core: the check and the compresses, and half the buffer (its two
+    # passes at once, no more); the columns and the expansion spread over the cores as the strips
+    serial_s = (serial_part + buffer_s / 2) / n
     par = 1 / full_rate - serial_s  # s per event of the stages on strips
     serial_share = 20e6 * serial_s  # cores' worth of the serial part at Gen4's rate
     with_serial = (f"{20e6 * par / eff8 / (1 - serial_share):.1f}" if serial_share < 1
@@ -430,7 +444,8 @@ def bench_tiles(events, size, repeat, tiles, sub, full_rate, edge_s_per_event, b
           f"edge image {edge_s_per_event * 1e9:.0f}, bookkeeping {rest / n * 1e9:.0f}): {20e6 / full_rate:.1f} cores "
           f"with no parallel loss; {20e6 / full_rate / eff8:.1f} cores at the strips' 8-strip efficiency "
           f"(simulated 8-strip speedup / 8 / extra CPU = {eff8:.2f}), every stage spread over the cores; "
-          f"{with_serial} with detect's serial part (checks, columns, expand and the buffer: {serial_share:.2f} core "
+          f"{with_serial} with detect's serial part (the check, the compresses and a buffer pass: "
+          f"{serial_share:.2f} core "
           f"at 20 M ev/s) left on one core (target <= 8)")
 
 

@@ -22,6 +22,7 @@ from ._stream_kernels import (_expand_lifetimes, _expand_lifetimes_par, _kept_co
                               _kept_offsets, _pack_lifetimes)
 from ._tiles import check_n_tiles
 from .buffer import EventBuffer
+from .buffer import _keep_mask as _buffer_keep_mask
 from .edges import EdgeImage
 from .intra import IntraPixelLifetime
 from .protocols import METHODS
@@ -264,32 +265,43 @@ def detect(events: np.ndarray, sensor_size, method: str = "intra", *, buffer_par
     n_tiles = check_n_tiles(n_tiles, sensor_size.height)
     flt = _default_filter(method, use_buffer, filter)
     estimator = make_method(method, sensor_size, _with_tiles(method, params, n_tiles), kind="estimator")
+    if (flt and type(estimator) is IntraPixelLifetime and isinstance(events, np.ndarray)
+            and events.dtype == EVENT_DTYPE and events.ndim == 1
+            and METHODS.get(flt, kind="filter").metadata.get("keep_mask") is _buffer_keep_mask):
+        # the built-in buffer and estimator on records: the buffer's first pass checks range and order on its
+        # way (check_events' error on a bad event), so no separate O(n) check of the same records; its passes
+        # at once on two threads with n_tiles > 1 (same bytes)
+        kept = _buffer_keep_mask(events, sensor_size, n_tiles=n_tiles, **method_params(flt, buffer_params))
+        return DetectionResult(_intra_on_kept(estimator, events, kept, n_tiles), kept)
     events = check_events(events, sensor_size)  # the one O(n) check: the stages' own checks are O(1)
     with validated(events, sensor_size):
         # the event buffer: its one-shot passes, at once on two threads with n_tiles > 1 (its strips' gathering
         # and bookkeeping cost more than the passes, benchmarks/bench_buffer.py); same bytes either way
         kept = (keep_mask(flt, events, sensor_size, buffer_params, n_tiles=n_tiles) if flt
                 else np.ones(events.shape[0], bool))
-        if flt and type(estimator) is IntraPixelLifetime and events.shape[0]:
-            # the built-in estimator on the kept events' columns, its columns scattered back into the
-            # records in one pass each (no record copy, column unpacking, packing or field scatters)
-            # (with n_tiles > 1 over chunks of events in parallel: the same arrays)
-            off = _kept_offsets(kept) if n_tiles > 1 else None
-            cols = _kept_columns(events, kept) if off is None else _kept_columns_par(events, kept, off)
-            out = np.empty(events.shape[0], dtype=LIFETIME_DTYPE)
-            if cols.shape[1]:  # (the estimator's _estimate takes a non-empty chunk)
-                if off is None:
-                    _expand_lifetimes(kept, *estimator._estimate(*cols), out)
-                else:
-                    _expand_lifetimes_par(kept, *estimator._estimate(*cols), out, off)
-            else:
-                _expand_lifetimes(kept, *(np.empty(0),) * 3, np.empty(0, bool), out)
-            return DetectionResult(out, kept)
+        if flt and type(estimator) is IntraPixelLifetime:
+            return DetectionResult(_intra_on_kept(estimator, events, kept, n_tiles), kept)
         # compress, not events[kept]: the same rows, ~4x faster on the packed event records
         sub = events.compress(kept) if flt else events
         with validated(sub, sensor_size):  # a subset, in order, of checked events
             est = _check_estimate(method, estimator.process(sub), sub.shape[0])
     return DetectionResult(_expand(est, kept) if flt else est.copy(), kept)
+
+
+def _intra_on_kept(estimator: IntraPixelLifetime, events: np.ndarray, kept: np.ndarray, n_tiles: int) -> np.ndarray:
+    """The built-in estimator on the kept events' columns, its columns scattered back into records aligned with
+    ``events`` in one pass each (no record copy, column unpacking, packing or field scatters); with
+    ``n_tiles > 1`` over chunks of events in parallel (the same arrays)."""
+    out = np.empty(events.shape[0], dtype=LIFETIME_DTYPE)
+    off = _kept_offsets(kept) if n_tiles > 1 else None
+    cols = _kept_columns(events, kept) if off is None else _kept_columns_par(events, kept, off)
+    if not cols.shape[1]:  # (the estimator's _estimate takes a non-empty chunk)
+        _expand_lifetimes(kept, *(np.empty(0),) * 3, np.empty(0, bool), out)
+    elif off is None:
+        _expand_lifetimes(kept, *estimator._estimate(*cols), out)
+    else:
+        _expand_lifetimes_par(kept, *estimator._estimate(*cols), out, off)
+    return out
 
 
 def _expand(est: np.ndarray, kept: np.ndarray) -> np.ndarray:

@@ -110,15 +110,31 @@ def test_the_marker_is_per_thread(count):
 
 
 def test_detect_checks_the_events_once(count):
+    """The built-in buffer and estimator on records: the buffer's first pass is the check (no separate O(n)
+    pass, and a bad event still gets check_events' error, serially and with strips); another estimator: one
+    check_events, its stages O(1)."""
     ev = _events(2000)
     ref = detect(ev, SIZE)
-    assert count == [2000]
+    assert count == []
     assert ev.flags.writeable
+    for n_tiles in (1, 2):
+        for field, value in (("x", SIZE.width), ("t", -1)):
+            bad = ev.copy()
+            bad[field][1500] = value
+            with pytest.raises(ValueError) as want:
+                check_events(bad, SIZE)
+            count.clear()
+            with pytest.raises(ValueError) as got:
+                detect(bad, SIZE, n_tiles=n_tiles)
+            assert str(got.value) == str(want.value) and count == [2000]  # (the message's own check)
     # same result as with every stage checking (the marker changes no output)
     count.clear()
     with validated(check_events(ev, SIZE), SIZE):
         again = detect(ev, SIZE)
     assert count == [2000] and again.lifetimes.tobytes() == ref.lifetimes.tobytes()
+    count.clear()
+    detect(ev, SIZE, method="mueggler", use_buffer=True)
+    assert count == [2000]
 
 
 def test_edge_frames_checks_once(count):
