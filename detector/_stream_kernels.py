@@ -102,6 +102,35 @@ def _expand_chunk(kept, lt, vx, vy, valid, out, lo, hi, i):
             o.valid = False
 
 
+@njit(cache=True, inline="always")
+def _columns_chunk(events, cols, lo, hi):
+    """Events ``[lo, hi)``'s x, y, t, p into ``cols[:, lo:hi]``."""
+    for k in range(lo, hi):
+        e = events[k]
+        cols[0, k] = e.x
+        cols[1, k] = e.y
+        cols[2, k] = e.t
+        cols[3, k] = 1 if e.p else 0
+
+
+@njit(cache=True)
+def _record_columns(events):
+    """The events' x, y, t, p as a (4, n) int64 array (its rows: the estimator's columns), in one pass."""
+    cols = np.empty((4, events.shape[0]), np.int64)
+    _columns_chunk(events, cols, 0, events.shape[0])
+    return cols
+
+
+@njit(parallel=True, cache=True)
+def _record_columns_par(events):
+    """:func:`_record_columns` over chunks of events in parallel: the same array."""
+    n = events.shape[0]
+    cols = np.empty((4, n), np.int64)
+    for c in prange((n + _CHUNK - 1) // _CHUNK):
+        _columns_chunk(events, cols, c * _CHUNK, min(n, (c + 1) * _CHUNK))
+    return cols
+
+
 @njit(cache=True)
 def _kept_columns(events, kept):
     """The kept events' x, y, t, p as a (4, m) int64 array (its rows: the estimator's columns), in one pass."""

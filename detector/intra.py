@@ -597,9 +597,10 @@ import numpy as np
 
 from evedge._validate import check_bool, check_integer, check_positive, check_real
 
-from ._checks import check_events, check_not_before, check_sensor_size, columns
+from ._checks import check_events, check_not_before, check_sensor_size
 from ._intra_kernels import _FIT_STRIDE, _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, N_NOISE
+from ._stream_kernels import _pack_lifetimes, _record_columns, _record_columns_par
 from ._tiles import check_n_tiles, intra_tiled
 from .fill import ARRIVAL, NeighbourFill, check_fill
 from .result import LIFETIME_DTYPE, empty_lifetimes
@@ -1048,15 +1049,15 @@ class IntraPixelLifetime:
         if n == 0:
             return empty_lifetimes(0)
         out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
-        lt, vx, vy, valid = self._estimate(*columns(events))
-        out["lifetime_us"] = lt
-        out["vx_px_s"] = vx
-        out["vy_px_s"] = vy
-        out["valid"] = valid
+        # the columns and the records out in one numba pass each (with strips: the columns over chunks in parallel)
+        cols = _record_columns_par(events) if self.n_tiles > 1 else _record_columns(events)
+        _pack_lifetimes(*self._estimate(*cols), out)
         return out
 
     def _estimate(self, x, y, t, p):
-        """:meth:`process` on the plain columns (:func:`columns`) of a checked, non-empty chunk.
+        """:meth:`process` on the plain int64 columns of a checked, non-empty chunk.
+
+        (The columns as :func:`~evedge.detector._checks.columns` makes them.)
 
         Returns ``lt, vx, vy, valid`` (the output's fields as plain arrays) after
         the same state updates as :meth:`process`: for a pipeline that holds the

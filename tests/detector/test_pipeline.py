@@ -311,13 +311,17 @@ def test_kept_columns_and_expansion_in_parallel_chunks():
     """detect's bookkeeping with n_tiles > 1 (chunks of events in parallel, at offsets counted first) gives the
     serial arrays: masks keeping all, none, or some, over more than one chunk and a partial last one."""
     from evedge.detector._stream_kernels import (_CHUNK, _expand_lifetimes, _expand_lifetimes_par, _kept_columns,
-                                                 _kept_columns_par, _kept_offsets)
+                                                 _kept_columns_par, _kept_offsets, _record_columns,
+                                                 _record_columns_par)
     from evedge.detector.result import LIFETIME_DTYPE
 
     rng = np.random.default_rng(4)
     n = 3 * _CHUNK + 11
     ev = make_events(rng.integers(0, 50, n), rng.integers(0, 40, n), np.sort(rng.integers(0, 10**6, n)),
                      rng.random(n) < 0.5)
+    for e in (ev, ev[::3]):  # all the events' columns (the estimator's process), also of a strided view
+        want = np.stack([e[f].astype(np.int64) for f in ("x", "y", "t", "p")])
+        assert np.array_equal(_record_columns(e), want) and np.array_equal(_record_columns_par(e), want)
     for kept in (rng.random(n) < 0.3, np.ones(n, bool), np.zeros(n, bool), np.arange(n) >= n - 7):
         off = _kept_offsets(kept)
         assert off.shape == (4 + 1,) and off[-1] == kept.sum()
