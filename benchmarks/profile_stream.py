@@ -33,6 +33,12 @@ stage               shapes_translation     stripes.mat
 4 full fit          383 -> 376 (+123/+118) 753 -> 726 (+463/+439)
 ==================  =====================  =====================
 
+Measured 2026-12-07 (load 1.0, first 150,000 kept events, best of 5; ``--repeat 5 --base 9d7b6b6``;
+every event fitted: the kernel's burst reuse is off here), 9d7b6b6 -> today (the fit's scratch arrays
+passed without reference counts, ``detector/_borrow.py``): shapes_translation 64 / 142 / 183 / 230 /
+310 -> 45 / 112 / 166 / 215 / 293 ns per kept event at the end of stages 0-4, stripes.mat 67 / 151 /
+196 / 260 / 631 -> 50 / 120 / 184 / 245 / 619 (the same bytes, checked).
+
 No stage dominates on shapes: the fixed per-event work (stages 0-3, ~260 ns) is a
 dozen short loops over the 5x5 window's ~10-20 points; RANSAC and the refit add
 ~120 ns there (82 % of the clusters skip the trials) and ~440 ns on stripes.mat.
@@ -98,15 +104,19 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
     a = src.index("@njit(cache=False)\ndef _intra_stream(")
     b = src.index("@njit(cache=False)\ndef _fit_windows(")
     st = src[a:b]
-    st = st.replace("out_valid, wf, wi, ls_first):", "out_valid, wf, wi, ls_first, rec, stage):")
-    if "n, big = _gather(" in st:
-        st = st.replace("= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)",
-                        "= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest) if stage != 0 else (0, 0)")
-    else:  # before the gather returned (n, big)
-        st = st.replace("= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest)",
-                        "= _gather(sae, wf, wi, base, xk, yk, tk, width, rows, half, oldest) if stage != 0 else 0")
+    # (the signature and the gather's radius as the kernel has had them: before the ring refit and after)
+    if "out_valid, wf, wi, ls_first):" in st:
+        st = st.replace("out_valid, wf, wi, ls_first):", "out_valid, wf, wi, ls_first, rec, stage):")
+    else:  # optional arguments after ls_first (ring refit, burst reuse): rec and stage before them
+        st = st.replace("wf, wi, ls_first, refine=None,", "wf, wi, ls_first, rec, stage, refine=None,")
+    for radius in ("half", "fh"):
+        call = f"_gather(sae, wf, wi, base, xk, yk, tk, width, rows, {radius}, oldest)"
+        if "n, big = _gather(" in st:
+            st = st.replace(f"= {call}", f"= {call} if stage != 0 else (0, 0)")
+        else:  # before the gather returned (n, big)
+            st = st.replace(f"= {call}", f"= {call} if stage != 0 else 0")
     st = st.replace("jump_check, noise, ls_first)", "jump_check, noise, ls_first, rec, 2 * k + attempt, stage)")
-    assert "2 * k + attempt" in st and "if stage != 0" in st
+    assert "2 * k + attempt" in st and "if stage != 0" in st and "rec, stage" in st
     src = src[:a] + st
     mod = types.ModuleType("_intra_kernels_profiled")
     exec(compile(src, "<profiled _intra_kernels>", "exec"), mod.__dict__)
