@@ -401,8 +401,10 @@ def filter_events(events: np.ndarray, sensor_size, params: BufferParams | None =
     params : BufferParams, optional
         Defaults: ``tau_min_us=10_000``, buffered form.
     n_tiles : int
-        Row strips processed in parallel (numba threads; default 1). Any value
-        gives the same decisions (:mod:`evedge.detector._tiles`).
+        Parallel work (numba threads; default 1): the buffered rule's two
+        one-shot passes at once on two threads, or, for the causal rule, the
+        line rule and streams near the int64 range's ends, row strips
+        (:mod:`evedge.detector._tiles`). Any value gives the same decisions.
 
     Returns
     -------
