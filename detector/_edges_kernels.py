@@ -12,7 +12,7 @@ _DY = np.array([0, 1, 1, 1, 0, -1, -1, -1], dtype=np.int64)
 
 @njit(cache=True)
 def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clear_behind, invalid_clears,
-                 dirx, diry, p, burst, start_t, prev_lt, prev_pol):
+                 dirx, diry, p, burst, start_t, prev_lt, prev_pol, sel=None, a=0, b=0, row0=0):
     """Apply events in order to the per-pixel state (flat ``y * width + x``).
 
     ``last_t`` (int64) is the time of the pixel's newest counted event and
@@ -28,9 +28,16 @@ def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clea
     event continues the burst, and its life is counted from the burst's start:
     ``expiry = start + lifetime``. Otherwise it starts a burst (``expiry = t +
     lifetime``, as with ``burst = 0``).
+
+    ``sel`` (None: every event, in order): the events ``sel[a:b]`` instead, read
+    in place, on a state whose row 0 is sensor row ``row0`` (a strip,
+    :mod:`evedge.detector._tiles`; ``height`` is then its rows).
     """
-    for k in range(x.shape[0]):
-        pix = y[k] * width + x[k]
+    j1 = x.shape[0] if sel is None else b
+    for j in range(0 if sel is None else a, j1):
+        k = j if sel is None else sel[j]
+        yk = y[k] - row0
+        pix = yk * width + x[k]
         if not valid[k]:
             if invalid_clears:
                 last_t[pix] = t[k]
@@ -52,7 +59,7 @@ def _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, height, clea
             # nearest of 8 directions; half-way angles round up (counter-clockwise)
             d = int(math.floor(ang / (math.pi / 4.0) + 0.5)) % 8
             xx = x[k] + dirx[d]
-            yy = y[k] + diry[d]
+            yy = yk + diry[d]
             if 0 <= xx < width and 0 <= yy < height:
                 q = yy * width + xx
                 if expiry[q] > t[k]:

@@ -131,6 +131,23 @@ def _record_columns_par(events):
     return cols
 
 
+@njit(parallel=True, cache=True)
+def _lifetime_columns_par(lifetimes):
+    """A LIFETIME_DTYPE array's lifetime, vx, vy as a (3, n) float64 array and valid as bool, over chunks in
+    parallel."""
+    n = lifetimes.shape[0]
+    cols = np.empty((3, n))
+    valid = np.empty(n, np.bool_)
+    for c in prange((n + _CHUNK - 1) // _CHUNK):
+        for k in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+            o = lifetimes[k]
+            cols[0, k] = o.lifetime_us
+            cols[1, k] = o.vx_px_s
+            cols[2, k] = o.vy_px_s
+            valid[k] = o.valid
+    return cols, valid
+
+
 @njit(cache=True)
 def _kept_columns(events, kept):
     """The kept events' x, y, t, p as a (4, m) int64 array (its rows: the estimator's columns), in one pass."""

@@ -204,23 +204,14 @@ def _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, rows, own_lo, ow
     """Edge frames of every strip (one per ``prange`` iteration) at the sorted instants ``times``.
 
     A strip replays the events of its rows and of one row on each side
-    (:func:`~evedge.detector._edges_kernels._edge_update` on its own state) and
-    writes its owned rows of frame ``order[i]`` at ``times[i]``.
+    (:func:`~evedge.detector._edges_kernels._edge_update`, read through its index
+    into the shared columns, on its own state) and writes its owned rows of frame
+    ``order[i]`` at ``times[i]``.
     """
     for s in prange(lo.shape[0]):
         sel = idx[starts[s]:starts[s + 1]]
         n = sel.shape[0]
-        xs, ys, ts, ps = _strip_events(x, y, t, p, sel, lo[s])
-        ls = np.empty(n)
-        us = np.empty(n)
-        ws = np.empty(n)
-        vs = np.empty(n, np.bool_)
-        for j in range(n):
-            k = sel[j]
-            ls[j] = lt[k]
-            us[j] = vx[k]
-            ws[j] = vy[k]
-            vs[j] = valid[k]
+        row0 = lo[s]
         cells = rows[s] * width
         last_t = np.full(cells, NEVER_US, np.int64)
         expiry = np.full(cells, -np.inf)
@@ -228,23 +219,23 @@ def _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, rows, own_lo, ow
         prev_lt = np.full(cells, np.nan)
         prev_pol = np.full(cells, -1, np.int8)
         a = 0
-        r0 = own_lo[s] - lo[s]
-        r1 = own_hi[s] - lo[s]
+        r0 = own_lo[s] - row0
+        r1 = own_hi[s] - row0
         for i in range(times.shape[0]):
             tt = times[i]
             b = a
-            while b < n and ts[b] <= tt:
+            while b < n and t[sel[b]] <= tt:
                 b += 1
             if b > a:
-                _edge_update(xs[a:b], ys[a:b], ts[a:b], ls[a:b], us[a:b], ws[a:b], vs[a:b], last_t, expiry, width,
-                             rows[s], clear_behind, invalid_clears, _DX, _DY, ps[a:b], burst, start_t, prev_lt,
-                             prev_pol)
+                _edge_update(x, y, t, lt, vx, vy, valid, last_t, expiry, width, rows[s], clear_behind, invalid_clears,
+                             _DX, _DY, p, burst, start_t, prev_lt, prev_pol, sel, a, b, row0)
                 a = b
             f = order[i]
             for r in range(r0, r1):
+                q0 = r * width
                 for c in range(width):
-                    q = r * width + c
-                    out[f, r + lo[s], c] = last_t[q] <= tt and tt < expiry[q]
+                    # (both comparisons, no short circuit: the loop vectorises)
+                    out[f, r + row0, c] = (last_t[q0 + c] <= tt) & (tt < expiry[q0 + c])
 
 
 def edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, width: int, height: int, clear_behind: bool,

@@ -38,6 +38,7 @@ import numpy as np
 from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
                       columns)
 from ._edges_kernels import _DX, _DY, _edge_update
+from ._stream_kernels import _lifetime_columns_par, _record_columns_par
 from ._tiles import check_n_tiles, edge_frames_tiled
 
 _INT64_MAX = np.iinfo(np.int64).max
@@ -210,13 +211,13 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
                       display=display)
     order = np.argsort(times, kind="stable")
     if n_tiles > 1 and times.size and events.size:
-        x, y, t, p = columns(events)
+        # the events' and the lifetimes' columns over chunks in parallel (the same arrays as columns())
+        x, y, t, p = _record_columns_par(events)
+        (lt, vx, vy), valid = _lifetime_columns_par(lifetimes)
         # the instants as the serial comparisons see them (int64 / float64 against the int64 times)
         sorted_t = times[order].astype(np.float64 if times.dtype.kind == "f" or times.max() > _INT64_MAX
                                        else np.int64)
-        edge_frames_tiled(x, y, t, np.ascontiguousarray(lifetimes["lifetime_us"]),
-                          np.ascontiguousarray(lifetimes["vx_px_s"]), np.ascontiguousarray(lifetimes["vy_px_s"]),
-                          np.ascontiguousarray(lifetimes["valid"]), p, sensor_size.width, sensor_size.height,
+        edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, sensor_size.width, sensor_size.height,
                           image.clear_behind, image.invalid == "clear", image.burst_lifetimes, sorted_t, order,
                           n_tiles, out)
         return out

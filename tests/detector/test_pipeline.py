@@ -311,8 +311,8 @@ def test_kept_columns_and_expansion_in_parallel_chunks():
     """detect's bookkeeping with n_tiles > 1 (chunks of events in parallel, at offsets counted first) gives the
     serial arrays: masks keeping all, none, or some, over more than one chunk and a partial last one."""
     from evedge.detector._stream_kernels import (_CHUNK, _expand_lifetimes, _expand_lifetimes_par, _kept_columns,
-                                                 _kept_columns_par, _kept_offsets, _record_columns,
-                                                 _record_columns_par)
+                                                 _kept_columns_par, _kept_offsets, _lifetime_columns_par,
+                                                 _record_columns, _record_columns_par)
     from evedge.detector.result import LIFETIME_DTYPE
 
     rng = np.random.default_rng(4)
@@ -337,3 +337,6 @@ def test_kept_columns_and_expansion_in_parallel_chunks():
         _expand_lifetimes_par(kept, lt, vx, vy, valid, b, off)
         assert a.tobytes() == b.tobytes()
         assert np.array_equal(a["lifetime_us"][kept], lt) and np.isnan(a["lifetime_us"][~kept]).all()
+        cols, got_valid = _lifetime_columns_par(a)  # and back to columns (the edge frames' strips)
+        assert np.array_equal(cols, np.stack([a[f] for f in ("lifetime_us", "vx_px_s", "vy_px_s")]), equal_nan=True)
+        assert np.array_equal(got_valid, a["valid"])
