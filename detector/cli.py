@@ -139,7 +139,8 @@ def _method_help() -> str:
             + "; or package.module:factory of a third-party method.")
 
 
-def _estimate(method, events, sensor, filter_name, filter_params, params, frame_t, display, quiet, ahead=None):
+def _estimate(method, events, sensor, filter_name, filter_params, params, frame_t, display, quiet, ahead=None,
+              n_tiles=1):
     """The per-event table (a dict of the LIFETIME_COLUMNS, one array each: estimates, NaN where
     none, and the filter's keep mask) and the edge frames at ``frame_t``, in one pass over chunks of the events.
 
@@ -157,6 +158,9 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     estimator's kernel into numba's cache meanwhile; the buffer (compiled and run
     in :func:`keep_mask`) and the edge image are compiled here first, then the
     child is awaited before the estimator's first chunk.
+
+    ``n_tiles``: the filter's keep mask and an estimator that takes strips run
+    them (:func:`~evedge.detector.pipeline.detect`'s ``n_tiles``; the same output).
     """
     from tqdm import tqdm
 
@@ -164,10 +168,11 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
 
     from .edges import EdgeImage
     from ._checks import validated
-    from .pipeline import _check_estimate, keep_mask, make_method
+    from .pipeline import _check_estimate, _with_tiles, keep_mask, make_method
 
-    kept = keep_mask(filter_name, events, sensor, filter_params) if filter_name else np.ones(events.size, bool)
-    est = make_method(method, sensor, params, kind="estimator")
+    kept = (keep_mask(filter_name, events, sensor, filter_params, n_tiles=n_tiles) if filter_name
+            else np.ones(events.size, bool))
+    est = make_method(method, sensor, _with_tiles(method, params, n_tiles), kind="estimator")
     # one array per column (not a structured table): write_detection frees each once it is in the file image
     table = {name: (kept if name == "kept" else np.empty(events.size, dtype)) for name, dtype in LIFETIME_COLUMNS}
     image = EdgeImage(sensor, display=display)
@@ -345,10 +350,13 @@ def _write_video(path: Path, rec, det, lifetimes, kept, colour, fps, quiet) -> N
 @click.option("--compress/--no-compress", "compress", default=False, show_default=True,
               help="gzip the per-event columns of detection.h5 (~2x smaller, ~0.9 us per event; edge frames "
                    "are always compressed).")
+@click.option("--tiles", "n_tiles", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Row strips run in parallel (numba threads) by the intra estimator and the event buffer; the "
+                   "same output for any value.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing OUT (a previous detect output).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 def detect(events_file, out, method, param_items, config, fps, times, at_frames, window_ms, n_events, sensor, sort, use_buffer,
-           display, seed, embed_events, video, video_colour, write_png, compress, overwrite, quiet):
+           display, seed, embed_events, video, video_colour, write_png, compress, n_tiles, overwrite, quiet):
     """Detect edges in an event file EVENTS (any format evedge.io reads) with any registered method.
 
     Writes OUT/detection.h5, a self-describing file (format evedge-detection:
@@ -405,7 +413,7 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
     try:
         _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort, display, params,
                 params_all, filter_name, filter_all, embed_events, video, video_colour, write_png, compress,
-                replacing, quiet, ahead)
+                replacing, quiet, ahead, n_tiles)
     finally:
         if ahead is not None:
             ahead.close()
@@ -413,7 +421,7 @@ def detect(events_file, out, method, param_items, config, fps, times, at_frames,
 
 def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort, display, params, params_all,
             filter_name, filter_all, embed_events, video, video_colour, write_png, compress, replacing, quiet,
-            ahead):
+            ahead, n_tiles=1):
     """The rest of :func:`detect`, from reading the input on (``ahead``: see :func:`_estimate`)."""
     from evedge._output import OutputExistsError, staged_folder
     from evedge.io import read_events
@@ -421,6 +429,7 @@ def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort
     from evedge.events import Frames
 
     from ._checks import validated
+    from ._tiles import check_n_tiles
     from .pipeline import edge_frames_of
 
     try:
@@ -428,6 +437,10 @@ def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort
     except (ValueError, TypeError, OSError) as err:
         raise click.ClickException(str(err)) from None
     events, size = rec.events, rec.sensor_size
+    try:
+        check_n_tiles(n_tiles, size.height)
+    except ValueError as err:
+        raise click.BadParameter(f"{err} ({events_file}: {size.width}x{size.height})", param_hint="'--tiles'") from None
     if at_frames:
         stack = rec.edges if rec.edges is not None and len(rec.edges) else rec.frames
         if stack is None or not len(stack):
@@ -450,7 +463,7 @@ def _detect(events_file, out, method, entry, fps, times, at_frames, sensor, sort
     if entry.kind == "estimator":
         with validated(events, size):  # checked once, when read (Recording): the stages' checks are O(1)
             table, kept, frames = _estimate(method, events, size, filter_name, filter_all, params, frame_t, display,
-                                            quiet, ahead)
+                                            quiet, ahead, n_tiles)
     else:
         frames = edge_frames_of(method, events, size, frame_t, params)
     source = Path(events_file).resolve()

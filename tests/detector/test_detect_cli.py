@@ -90,6 +90,8 @@ def test_detect_bad_options_are_clear_errors(tmp_path, edge_events):
         (["--method", "time", "--times", "20000,10000"], "--times"),
         (["--method", "count", "--times", "20000,10000"], "--times"),
         (["--times", "99999999999999999999"], "--times"),
+        (["--tiles", "0"], "--tiles"),
+        (["--tiles", "11"], "--tiles"),  # more strips than the 10 rows
     ]
     for extra, option in cases:
         res = CliRunner().invoke(detect, base + extra)
@@ -308,7 +310,8 @@ def test_detect_default_display_is_the_reports_primary(tmp_path, edge_events):
 
 def test_detect_streams_chunks_with_the_library_result(tmp_path, edge_events, monkeypatch):
     """Chunked estimation + edge image in one pass (small chunks here) gives the library's bytes:
-    detect()'s lifetimes and keep mask, edge_frames' maps; --no-png writes no PNG; --compress the same data."""
+    detect()'s lifetimes and keep mask, edge_frames' maps; --no-png writes no PNG; --compress the same data;
+    --tiles 2 (the buffer's passes at once, the estimator's strips, streamed in chunks) the same bytes."""
     import evedge.detector.cli as cli_mod
     from evedge.detector import edge_frames
     from evedge.io.detection import read_detection
@@ -321,7 +324,7 @@ def test_detect_streams_chunks_with_the_library_result(tmp_path, edge_events, mo
     times = [int(v) for v in np.linspace(int(ev["t"][0]) - 10, int(ev["t"][-1]) + 10, 9)]
     want = run_detect(ev, size)
     want_frames = edge_frames(ev[want.kept], want.lifetimes[want.kept], size, times, display="predecessor")
-    for extra in ((), ("--no-png",), ("--compress",)):
+    for extra in ((), ("--no-png",), ("--compress",), ("--tiles", "2"), ("--tiles", "3", "--no-png")):
         out = tmp_path / ("o" + "".join(extra))
         res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "24x20", "--quiet", "--times",
                                           ",".join(map(str, times)), *extra])
