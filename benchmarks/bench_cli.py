@@ -26,10 +26,13 @@ file in a temporary folder. Measured in one run:
   process, as before; the default when no core is free) is printed beside it;
 * the event buffer alone (``filter_events``, its checks included) in ns per event on the
   big file (least of 3 calls, the first beside it) and on ``stripes.mat`` (least of 5)
-  (issue 12 item 4's target <= 40).
+  (issue 12 item 4's target <= 40);
+* ``evedge detect --no-png --tiles N`` (default 2) against ``--tiles 1``, wall, alternated,
+  best of 2 each (the buffer's passes at once, the estimator on strips; the edge image
+  stays serial in the command).
 
 The machine is shared: the load average is printed. Run:
-``.venv/bin/python benchmarks/bench_cli.py [--copies 30] [--cold-events 1000000 10000000]``.
+``.venv/bin/python benchmarks/bench_cli.py [--copies 30] [--cold-events 1000000 10000000] [--tiles 2]``.
 """
 
 from __future__ import annotations
@@ -124,6 +127,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--copies", type=int, default=30)
     ap.add_argument("--cold-events", type=int, nargs="+", default=[1_000_000, 10_000_000])
+    ap.add_argument("--tiles", type=int, default=2, help="strips of the evedge detect --tiles row (1: skip it)")
     args = ap.parse_args(argv)
     data = load_stripes()
     if data is None:
@@ -170,6 +174,17 @@ def main(argv=None):
                   f"kernels / CLI = {kernels / cpu:.2f} (target >= 0.8); peak RSS {rss / 2**20:.0f} MiB, "
                   f"{(rss - base_rss) / n:.1f} B/event above the {base_rss / 2**20:.0f} MiB of a 1000-event run "
                   f"(target <= 64)")
+
+        if args.tiles > 1:  # the whole command on strips, wall against one strip, alternated (best of 2 each)
+            run_cli(tiny, tmp / "o0", "--tiles", str(args.tiles))  # the parallel kernels into the cache
+            walls = {1: [], args.tiles: []}
+            for _ in range(2):
+                for k in walls:
+                    walls[k].append(run_cli(src, tmp / "o2", "--no-png", "--tiles", str(k))[0])
+            w1, wk = min(walls[1]), min(walls[args.tiles])
+            print(f"evedge detect --no-png --tiles {args.tiles}: wall {wk:.2f} s against {w1:.2f} s on one strip, "
+                  f"{w1 / wk:.2f}x (the same output: tests/detector/test_detect_cli.py); load "
+                  f"{os.getloadavg()[0]:.2f}")
 
         print("cold start: the kernels compiled by a serial run")
         compiled_kernels(tmp)
