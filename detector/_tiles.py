@@ -644,6 +644,23 @@ def _put_owned(y, lo, hi, own_lo, own_hi, off, slot_lt, slot_vx, slot_vy, slot_v
                 fill[s] += 1
 
 
+@njit(parallel=True, cache=True)
+def _state_to_strips(g, local, lo, hi, off):
+    """Each strip's rows ``[lo, hi)`` of the state ``g`` (planes, height, cells per row) into ``local[off[s]:]``,
+    the strips in parallel."""
+    for s in prange(lo.shape[0]):
+        dst = local[off[s]:off[s + 1]].reshape(g.shape[0], hi[s] - lo[s], g.shape[2])
+        dst[:, :, :] = g[:, lo[s]:hi[s], :]
+
+
+@njit(parallel=True, cache=True)
+def _strips_to_state(g, local, lo, hi, own_lo, own_hi, off):
+    """Each strip's owned rows back from ``local`` into the state ``g``, the strips in parallel (disjoint rows)."""
+    for s in prange(lo.shape[0]):
+        src = local[off[s]:off[s + 1]].reshape(g.shape[0], hi[s] - lo[s], g.shape[2])
+        g[:, own_lo[s]:own_hi[s], :] = src[:, own_lo[s] - lo[s]:own_hi[s] - lo[s], :]
+
+
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
                 stats: np.ndarray | None = None, work: np.ndarray | None = None, fits: np.ndarray | None = None):
     """The intra-pixel estimator over ``n_tiles`` strips; the serial result (module notes).
@@ -680,11 +697,9 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     reuse = fits is not None and fits.size > 0
     if reuse:
         state = (*state, fits.reshape(planes, height, _FIT_STRIDE * width))
-    local = [np.empty(off[-1] * (l.shape[2] // width), l.dtype) for l in state]
-    for s in range(n_tiles):
-        for g, l in zip(state, local):
-            c = g.shape[2] // width
-            l[c * off[s]:c * off[s + 1]] = g[:, lo[s]:hi[s], :].reshape(-1)
+    local = [np.empty(off[-1] * (g.shape[2] // width), g.dtype) for g in state]
+    for g, l in zip(state, local):
+        _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
     if not reuse:
         local.append(np.empty(0))
     dec = np.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
@@ -703,8 +718,5 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
                     np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
                     np.empty((2, x.shape[0])), width, height, tuple(kernel_args), *slot_outs, stats, work, par)
     _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
-    for s in range(n_tiles):
-        a, b = own_lo[s], own_hi[s]
-        for g, l in zip(state, local):
-            c = g.shape[2] // width
-            g[:, a:b, :] = l[c * off[s]:c * off[s + 1]].reshape(planes, rows[s], c * width)[:, a - lo[s]:b - lo[s], :]
+    for g, l in zip(state, local):
+        _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
