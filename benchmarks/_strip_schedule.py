@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from evedge.detector._tiles import _QUEUE_MAX, _strip_index, balanced_strips
+from evedge.detector._tiles import _QUEUE_MAX, strip_layout
 
 
 @njit(cache=True)
@@ -151,10 +151,7 @@ def simulate_strips(events, sensor_size, n_tiles: int, half: int = 2, per_polari
     needs_own = np.zeros(x.size, bool)
     if valid is not None:
         needs_own = (prev_same >= 0) & ~np.asarray(valid, bool)[np.maximum(prev_same, 0)]
-    own = balanced_strips(y, height, n_tiles)
-    lo = np.maximum(own[:, 0] - half, 0)
-    hi = np.minimum(own[:, 1] + half, height)
-    idx, starts, _ = _strip_index(y, lo, hi)
+    own, lo, hi, idx, starts, _ = strip_layout(y, height, n_tiles, half)
     clock, waited, deferred = _schedule(x, y, p, prev_same, needs_own, idx, starts, lo,
                                         own[:, 0].copy(), own[:, 1].copy(), hi - lo, width, half, per_polarity,
                                         min(queue_max, x.size), halo_cost,

@@ -96,7 +96,13 @@ def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
     row); where the strips are cut changes no result, only how evenly the work
     is shared.
     """
-    cum = np.cumsum(_row_counts(np.asarray(y), height)) if height else np.zeros(0, np.int64)
+    return _balanced(_chunk_rows(np.asarray(y), height).sum(axis=0) if height else np.zeros(0, np.int64),
+                     height, n_tiles)
+
+
+def _balanced(counts: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
+    """:func:`balanced_strips` from the events per row."""
+    cum = np.cumsum(counts)
     edges = np.zeros(n_tiles + 1, np.int64)
     edges[-1] = height
     total = cum[-1] if cum.size else 0
@@ -106,7 +112,22 @@ def balanced_strips(y: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
     return np.stack([edges[:-1], edges[1:]], axis=1)
 
 
-#: Events per chunk of the parallel passes over all events (:func:`_row_counts`, :func:`_strip_index`,
+def strip_layout(y: np.ndarray, height: int, n_tiles: int, halo: int):
+    """The strips of the events with rows ``y``: their owned rows (:func:`balanced_strips`), with ``halo`` rows on
+    each side, and their events (:func:`_strip_index`), from one pass of row counts per chunk of events.
+
+    Returns ``(own, lo, hi, idx, starts, off)``: ``own`` ``(n_tiles, 2)``, the rows
+    ``[lo, hi)`` each strip holds, and :func:`_strip_index`'s three arrays.
+    """
+    part = _chunk_rows(y, height)
+    own = _balanced(part.sum(axis=0), height, n_tiles)
+    lo = np.maximum(own[:, 0] - halo, 0)
+    hi = np.minimum(own[:, 1] + halo, height)
+    idx, starts, off = _strip_index(y, lo, hi, part)
+    return own, lo, hi, idx, starts, off
+
+
+#: Events per chunk of the parallel passes over all events (:func:`_chunk_rows`, :func:`_strip_index`,
 #: :func:`_put_owned`): a chunk's work is independent of the others', its place in the output fixed by
 #: counts taken first, so the result is the serial one for any number of threads.
 _CHUNK_EVENTS = 1 << 15
@@ -118,8 +139,8 @@ def _n_chunks(n):
 
 
 @njit(parallel=True, cache=True)
-def _row_counts(y, height):
-    """Events per row (``np.bincount(y, minlength=height)[:height]``; rows outside ``[0, height)`` ignored)."""
+def _chunk_rows(y, height):
+    """Events per row of each chunk of events: ``(chunks, height)`` (rows outside ``[0, height)`` ignored)."""
     nc = _n_chunks(y.shape[0])
     part = np.zeros((nc, height), np.int64)
     for c in prange(nc):
@@ -129,10 +150,7 @@ def _row_counts(y, height):
             if 0 <= r < height:
                 row[r] += 1
         part[c] = row
-    out = np.zeros(height, np.int64)
-    for c in range(nc):
-        out += part[c]
-    return out
+    return part
 
 
 # ---------------------------------------------------------------- event buffer
@@ -183,10 +201,7 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
     The strips are cut where they hold about as many events (:func:`balanced_strips`).
     """
-    own = balanced_strips(y, height, n_tiles)
-    lo = np.maximum(own[:, 0] - 1, 0)
-    hi = np.minimum(own[:, 1] + 1, height)
-    idx, starts, _ = _strip_index(y, lo, hi)
+    own, lo, hi, idx, starts, _ = strip_layout(y, height, n_tiles, 1)
     supported = np.zeros(x.shape[0], bool)
     exact = x.shape[0] > 0 and one_shot_exact(t[0], t[-1], tau_us)
     narrow = x.shape[0] > 0 and narrow_state(t[0], t[-1], tau_us, width, height)
@@ -251,10 +266,7 @@ def edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, width: int, height: int, cl
     (``times[i]`` is frame ``order[i]``); cut where the strips hold about as many
     events (:func:`balanced_strips`).
     """
-    own = balanced_strips(y, height, n_tiles)
-    lo = np.maximum(own[:, 0] - 1, 0)
-    hi = np.minimum(own[:, 1] + 1, height)
-    idx, starts, _ = _strip_index(y, lo, hi)
+    own, lo, hi, idx, starts, _ = strip_layout(y, height, n_tiles, 1)
     _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width,
                 clear_behind, invalid_clears, burst, times, order, out)
 
@@ -584,33 +596,28 @@ def _row_strips(lo, hi):
 
 
 @njit(parallel=True, cache=True)
-def _strip_index(y, lo, hi):
+def _strip_index(y, lo, hi, part):
     """The events of every strip's rows ``[lo, hi)`` in time order, concatenated, the strips' offsets, and
     where each chunk's events of each strip begin.
 
-    Returns ``(idx, starts, off)``: strip ``s`` holds ``idx[starts[s]:starts[s + 1]]``;
-    the events of chunk ``c`` (events ``c * _CHUNK_EVENTS`` on) in strip ``s`` start
-    at ``idx[off[c, s]]``. Two passes over chunks in parallel (count, then fill at
-    the offsets the counts give): the serial order for any number of threads.
+    ``part``: :func:`_chunk_rows` of ``y``. Returns ``(idx, starts, off)``: strip
+    ``s`` holds ``idx[starts[s]:starts[s + 1]]``; the events of chunk ``c`` (events
+    ``c * _CHUNK_EVENTS`` on) in strip ``s`` start at ``idx[off[c, s]]``. The chunks'
+    counts per strip come from their row counts, then one pass over chunks in
+    parallel fills each at its offsets: the serial order for any number of threads.
     """
     n_tiles = lo.shape[0]
     first, last = _row_strips(lo, hi)
     n = y.shape[0]
-    nc = _n_chunks(n)
-    cnt = np.zeros((nc, n_tiles), np.int64)
-    for c in prange(nc):
-        own = np.zeros(n_tiles, np.int64)  # the chunk's own counts, written once
-        for k in range(c * _CHUNK_EVENTS, min(n, (c + 1) * _CHUNK_EVENTS)):
-            for s in range(first[y[k]], last[y[k]] + 1):
-                own[s] += 1
-        cnt[c] = own
+    nc = part.shape[0]
     starts = np.zeros(n_tiles + 1, np.int64)
     off = np.zeros((nc, n_tiles), np.int64)
     for s in range(n_tiles):
         acc = starts[s]
         for c in range(nc):
             off[c, s] = acc
-            acc += cnt[c, s]
+            for r in range(lo[s], hi[s]):
+                acc += part[c, r]
         starts[s + 1] = acc
     idx = np.empty(starts[-1], np.int64)
     for c in prange(nc):
@@ -681,13 +688,10 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
-    own = balanced_strips(y, height, n_tiles)
+    own, lo, hi, idx, starts, chunk_off = strip_layout(y, height, n_tiles, half)
     own_lo = own[:, 0].copy()
     own_hi = own[:, 1].copy()
-    lo = np.maximum(own_lo - half, 0)
-    hi = np.minimum(own_hi + half, height)
     rows = hi - lo
-    idx, starts, chunk_off = _strip_index(y, lo, hi)
     off = np.zeros(n_tiles + 1, np.int64)
     off[1:] = np.cumsum(planes * rows * width)
     roff = np.zeros(n_tiles + 1, np.int64)

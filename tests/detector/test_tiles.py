@@ -225,18 +225,25 @@ def test_estimator_strips_carry_the_lifetimes_the_noise_rule_reads():
 def test_strip_index_and_gather_equal_the_naive_ones(halo, n_tiles):
     """The parallel chunked passes (row counts, strip index, owned-slot gather) against plain Python on more
     events than one chunk holds, rows skewed, with empty strips' halos and a last partial chunk."""
-    from evedge.detector._tiles import _CHUNK_EVENTS, _put_owned, _row_counts, _strip_index, balanced_strips
+    from evedge.detector._tiles import (_CHUNK_EVENTS, _chunk_rows, _put_owned, _strip_index, balanced_strips,
+                                       strip_layout)
 
     rng = np.random.default_rng(halo * 10 + n_tiles)
     height = 37
     n = 3 * _CHUNK_EVENTS + 17
     y = np.minimum(rng.geometric(0.08, n) - 1, height - 1).astype(np.int64)
-    assert np.array_equal(_row_counts(y, height), np.bincount(y, minlength=height))
-    assert np.array_equal(_row_counts(y.astype(np.int16), height), np.bincount(y, minlength=height))
+    part = _chunk_rows(y, height)
+    assert part.shape == (4, height)
+    for c in range(4):  # each chunk's row counts
+        assert np.array_equal(part[c], np.bincount(y[c * _CHUNK_EVENTS:(c + 1) * _CHUNK_EVENTS], minlength=height))
+    assert np.array_equal(_chunk_rows(y.astype(np.int16), height), part)
     own = balanced_strips(y, height, n_tiles)
     lo = np.maximum(own[:, 0] - halo, 0)
     hi = np.minimum(own[:, 1] + halo, height)
-    idx, starts, off = _strip_index(y, lo, hi)
+    idx, starts, off = _strip_index(y, lo, hi, part)
+    layout = strip_layout(y, height, n_tiles, halo)  # the same, from one call
+    for got, want in zip(layout, (own, lo, hi, idx, starts, off)):
+        assert np.array_equal(got, want)
     for s in range(n_tiles):
         assert np.array_equal(idx[starts[s]:starts[s + 1]], np.flatnonzero((y >= lo[s]) & (y < hi[s])))
     # each strip's slots hold a value of (strip, event); the gather must pick the owner's slot of each event
@@ -249,5 +256,5 @@ def test_strip_index_and_gather_equal_the_naive_ones(halo, n_tiles):
     expect = owner * 10 * n + np.arange(n)
     assert np.array_equal(outs[0], expect) and np.array_equal(outs[1], 2 * expect)
     assert np.array_equal(outs[2], 3 * expect) and np.array_equal(outs[3], expect % 2 == 0)
-    empty = _strip_index(np.zeros(0, np.int64), lo, hi)
+    empty = _strip_index(np.zeros(0, np.int64), lo, hi, _chunk_rows(np.zeros(0, np.int64), height))
     assert empty[0].size == 0 and np.all(empty[1] == 0) and empty[2].shape == (0, n_tiles)
