@@ -258,3 +258,26 @@ def test_strip_index_and_gather_equal_the_naive_ones(halo, n_tiles):
     assert np.array_equal(outs[2], 3 * expect) and np.array_equal(outs[3], expect % 2 == 0)
     empty = _strip_index(np.zeros(0, np.int64), lo, hi, _chunk_rows(np.zeros(0, np.int64), height))
     assert empty[0].size == 0 and np.all(empty[1] == 0) and empty[2].shape == (0, n_tiles)
+
+
+def test_tiny_inputs_on_strips_equal_serial():
+    """No event, one, two, a few: detect, the buffer, the estimator and the edge frames on 2, 3 and 6 strips (as
+    many as the rows) give the serial bytes (the chunked passes, the buffer's two passes at once, empty strips)."""
+    from evedge.detector import edge_frames
+    from evedge.events import make_events
+
+    size = SensorSize(8, 6)
+    rng = np.random.default_rng(0)
+    for n in (0, 1, 2, 5, 40):
+        ev = make_events(rng.integers(0, 8, n), rng.integers(0, 6, n), np.sort(rng.integers(0, 10**5, n)),
+                         rng.random(n) < 0.5)
+        one = detect(ev, size)
+        for n_tiles in (2, 3, 6):
+            many = detect(ev, size, n_tiles=n_tiles)
+            assert many.lifetimes.tobytes() == one.lifetimes.tobytes() and np.array_equal(many.kept, one.kept)
+            assert np.array_equal(filter_events(ev, size, n_tiles=n_tiles), filter_events(ev, size))
+            assert (estimate_lifetimes(ev, size, n_tiles=n_tiles).tobytes()
+                    == estimate_lifetimes(ev, size).tobytes())
+            times = [0, 50_000, 10**5]
+            assert (edge_frames(ev, one.lifetimes, size, times, n_tiles=n_tiles).tobytes()
+                    == edge_frames(ev, one.lifetimes, size, times).tobytes())
