@@ -15,6 +15,8 @@ pixel side by side (a row of three neighbours is 48 contiguous bytes):
 import numpy as np
 from numba import njit, prange
 
+from ._chunks import chunk_bounds, n_chunks
+
 NEVER = np.iinfo(np.int64).min
 FOREVER = np.iinfo(np.int64).max  # the backward pass's "never fires"
 
@@ -262,15 +264,11 @@ def _passes_both(x, y, t, p, supported, state_before, state_after, t0, width, he
             bad[1] = _support_after(x, y, t, p, after, state_after, t0, width, height, tau_us)
     if bad[0] >= 0:
         return bad[0]
-    nc = (n + _OR_CHUNK - 1) // _OR_CHUNK
-    for c in prange(nc):
-        for k in range(c * _OR_CHUNK, min(n, (c + 1) * _OR_CHUNK)):
+    for c in prange(n_chunks(n)):
+        lo, hi = chunk_bounds(c, n)
+        for k in range(lo, hi):
             supported[k] |= after[k]
     return -1
-
-
-#: Events per chunk of :func:`_passes_both`'s final or (chunks in parallel).
-_OR_CHUNK = 1 << 16
 
 
 def run_passes(x, y, t, p, supported, width, height, tau_us, forward_only, narrow, threads=1):

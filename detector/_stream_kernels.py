@@ -10,6 +10,8 @@ code is never cached inside these kernels).
 import numpy as np
 from numba import njit, prange
 
+from ._chunks import chunk_bounds, n_chunks
+
 @njit(cache=True)
 def _fill_slots(events, width, height, t_last, has_until, until, ev, x, y, t, p, a):
     """Check a chunk and copy it into slots ``[a, a + n)`` of the buffer's arrays (records and int64 columns).
@@ -126,8 +128,9 @@ def _record_columns_par(events):
     """:func:`_record_columns` over chunks of events in parallel: the same array."""
     n = events.shape[0]
     cols = np.empty((4, n), np.int64)
-    for c in prange((n + _CHUNK - 1) // _CHUNK):
-        _columns_chunk(events, cols, c * _CHUNK, min(n, (c + 1) * _CHUNK))
+    for c in prange(n_chunks(n)):
+        lo, hi = chunk_bounds(c, n)
+        _columns_chunk(events, cols, lo, hi)
     return cols
 
 
@@ -138,8 +141,9 @@ def _lifetime_columns_par(lifetimes):
     n = lifetimes.shape[0]
     cols = np.empty((3, n))
     valid = np.empty(n, np.bool_)
-    for c in prange((n + _CHUNK - 1) // _CHUNK):
-        for k in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+    for c in prange(n_chunks(n)):
+        lo, hi = chunk_bounds(c, n)
+        for k in range(lo, hi):
             o = lifetimes[k]
             cols[0, k] = o.lifetime_us
             cols[1, k] = o.vx_px_s
@@ -166,18 +170,15 @@ def _expand_lifetimes(kept, lt, vx, vy, valid, out):
     _expand_chunk(kept, lt, vx, vy, valid, out, 0, kept.shape[0], 0)
 
 
-#: Events per chunk of the parallel forms (:func:`_kept_columns_par`, :func:`_expand_lifetimes_par`).
-_CHUNK = 1 << 15
-
-
 @njit(parallel=True, cache=True)
 def _kept_offsets(kept):
     """Where each chunk's kept events start among the kept ones (length chunks + 1: the total last)."""
-    nc = (kept.shape[0] + _CHUNK - 1) // _CHUNK
+    nc = n_chunks(kept.shape[0])
     cnt = np.zeros(nc + 1, np.int64)
     for c in prange(nc):
         m = 0
-        for k in range(c * _CHUNK, min(kept.shape[0], (c + 1) * _CHUNK)):
+        lo, hi = chunk_bounds(c, kept.shape[0])
+        for k in range(lo, hi):
             m += 1 if kept[k] else 0
         cnt[c + 1] = m
     return np.cumsum(cnt)
@@ -188,7 +189,8 @@ def _kept_columns_par(events, kept, off):
     """:func:`_kept_columns` over chunks in parallel (``off`` from :func:`_kept_offsets`): the same array."""
     cols = np.empty((4, off[-1]), np.int64)
     for c in prange(off.shape[0] - 1):
-        _kept_chunk(events, kept, cols, c * _CHUNK, min(kept.shape[0], (c + 1) * _CHUNK), off[c])
+        lo, hi = chunk_bounds(c, kept.shape[0])
+        _kept_chunk(events, kept, cols, lo, hi, off[c])
     return cols
 
 
@@ -196,4 +198,5 @@ def _kept_columns_par(events, kept, off):
 def _expand_lifetimes_par(kept, lt, vx, vy, valid, out, off):
     """:func:`_expand_lifetimes` over chunks in parallel (``off`` from :func:`_kept_offsets`): the same bytes."""
     for c in prange(off.shape[0] - 1):
-        _expand_chunk(kept, lt, vx, vy, valid, out, c * _CHUNK, min(kept.shape[0], (c + 1) * _CHUNK), off[c])
+        lo, hi = chunk_bounds(c, kept.shape[0])
+        _expand_chunk(kept, lt, vx, vy, valid, out, lo, hi, off[c])

@@ -67,6 +67,7 @@ from numba import njit, prange
 
 from ._atomic import _claim, _clock_ns, _load_acquire, _sched_yield, _store_release
 from ._checks import NEVER_US
+from ._chunks import chunk_bounds, n_chunks
 from ._buffer_kernels import (_buffer_scan, _line_scan, _two_passes, narrow_state, new_line_state, new_state,
                               one_shot_exact)
 from ._edges_kernels import _DX, _DY, _edge_update
@@ -127,25 +128,15 @@ def strip_layout(y: np.ndarray, height: int, n_tiles: int, halo: int):
     return own, lo, hi, idx, starts, off
 
 
-#: Events per chunk of the parallel passes over all events (:func:`_chunk_rows`, :func:`_strip_index`,
-#: :func:`_put_owned`): a chunk's work is independent of the others', its place in the output fixed by
-#: counts taken first, so the result is the serial one for any number of threads.
-_CHUNK_EVENTS = 1 << 15
-
-
-@njit(cache=True)
-def _n_chunks(n):
-    return (n + _CHUNK_EVENTS - 1) // _CHUNK_EVENTS
-
-
 @njit(parallel=True, cache=True)
 def _chunk_rows(y, height):
     """Events per row of each chunk of events: ``(chunks, height)`` (rows outside ``[0, height)`` ignored)."""
-    nc = _n_chunks(y.shape[0])
+    nc = n_chunks(y.shape[0])
     part = np.zeros((nc, height), np.int64)
     for c in prange(nc):
         row = np.zeros(height, np.int64)  # the chunk's own counts, written once (no shared cache lines)
-        for k in range(c * _CHUNK_EVENTS, min(y.shape[0], (c + 1) * _CHUNK_EVENTS)):
+        lo, hi = chunk_bounds(c, y.shape[0])
+        for k in range(lo, hi):
             r = y[k]
             if 0 <= r < height:
                 row[r] += 1
@@ -602,7 +593,7 @@ def _strip_index(y, lo, hi, part):
 
     ``part``: :func:`_chunk_rows` of ``y``. Returns ``(idx, starts, off)``: strip
     ``s`` holds ``idx[starts[s]:starts[s + 1]]``; the events of chunk ``c`` (events
-    ``c * _CHUNK_EVENTS`` on) in strip ``s`` start at ``idx[off[c, s]]``. The chunks'
+    ``c * CHUNK_EVENTS`` on, :mod:`._chunks`) in strip ``s`` start at ``idx[off[c, s]]``. The chunks'
     counts per strip come from their row counts, then one pass over chunks in
     parallel fills each at its offsets: the serial order for any number of threads.
     """
@@ -622,7 +613,8 @@ def _strip_index(y, lo, hi, part):
     idx = np.empty(starts[-1], np.int64)
     for c in prange(nc):
         fill = off[c].copy()
-        for k in range(c * _CHUNK_EVENTS, min(n, (c + 1) * _CHUNK_EVENTS)):
+        c0, c1 = chunk_bounds(c, n)
+        for k in range(c0, c1):
             for s in range(first[y[k]], last[y[k]] + 1):
                 idx[fill[s]] = k
                 fill[s] += 1
@@ -640,7 +632,8 @@ def _put_owned(y, lo, hi, own_lo, own_hi, off, slot_lt, slot_vx, slot_vy, slot_v
         owner[own_lo[s]:own_hi[s]] = s
     for c in prange(off.shape[0]):
         fill = off[c].copy()  # slot of the chunk's next event in each strip
-        for k in range(c * _CHUNK_EVENTS, min(y.shape[0], (c + 1) * _CHUNK_EVENTS)):
+        c0, c1 = chunk_bounds(c, y.shape[0])
+        for k in range(c0, c1):
             r = y[k]
             j = fill[owner[r]]
             lt[k] = slot_lt[j]

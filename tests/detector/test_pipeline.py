@@ -310,7 +310,8 @@ def test_streaming_detector_chunk_checks(edge_events):
 def test_kept_columns_and_expansion_in_parallel_chunks():
     """detect's bookkeeping with n_tiles > 1 (chunks of events in parallel, at offsets counted first) gives the
     serial arrays: masks keeping all, none, or some, over more than one chunk and a partial last one."""
-    from evedge.detector._stream_kernels import (_CHUNK, _expand_lifetimes, _expand_lifetimes_par, _kept_columns,
+    from evedge.detector._chunks import CHUNK_EVENTS as _CHUNK
+    from evedge.detector._stream_kernels import (_expand_lifetimes, _expand_lifetimes_par, _kept_columns,
                                                  _kept_columns_par, _kept_offsets, _lifetime_columns_par,
                                                  _record_columns, _record_columns_par)
     from evedge.detector.result import LIFETIME_DTYPE

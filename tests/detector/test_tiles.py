@@ -225,8 +225,8 @@ def test_estimator_strips_carry_the_lifetimes_the_noise_rule_reads():
 def test_strip_index_and_gather_equal_the_naive_ones(halo, n_tiles):
     """The parallel chunked passes (row counts, strip index, owned-slot gather) against plain Python on more
     events than one chunk holds, rows skewed, with empty strips' halos and a last partial chunk."""
-    from evedge.detector._tiles import (_CHUNK_EVENTS, _chunk_rows, _put_owned, _strip_index, balanced_strips,
-                                       strip_layout)
+    from evedge.detector._chunks import CHUNK_EVENTS as _CHUNK_EVENTS
+    from evedge.detector._tiles import _chunk_rows, _put_owned, _strip_index, balanced_strips, strip_layout
 
     rng = np.random.default_rng(halo * 10 + n_tiles)
     height = 37
