@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._chunks import chunk_bounds, n_chunks
+from ._prefetch import _prefetch
 
 NEVER = np.iinfo(np.int64).min
 FOREVER = np.iinfo(np.int64).max  # the backward pass's "never fires"
@@ -161,6 +162,10 @@ I32_MIN = np.iinfo(np.int32).min  # the narrow state's "never fired" (forward pa
 I32_MAX = np.iinfo(np.int32).max  # and "never fires" (backward pass)
 
 
+#: The one-shot passes ask for the state cells of the event this many places ahead (:mod:`._prefetch`).
+_AHEAD = 16
+
+
 @njit(cache=True)
 def _support_before(x, y, t, p, supported, state, t0, width, height, tau_us):
     """Set ``supported[k]``: a neighbour's latest event before ``k`` (stream order) is at most ``tau_us`` earlier.
@@ -178,6 +183,11 @@ def _support_before(x, y, t, p, supported, state, t0, width, height, tau_us):
     n = x.shape[0]
     t_prev = t[0] if n else 0
     for k in range(n):
+        if k + _AHEAD < n:  # a hint: the state rows of the event _AHEAD on (no value changes, never faults)
+            c = p[k + _AHEAD] * plane + (y[k + _AHEAD] + 1) * row + x[k + _AHEAD]
+            _prefetch(state, c - row)
+            _prefetch(state, c)
+            _prefetch(state, c + row)
         xk = x[k]
         yk = y[k]
         tk = t[k]
@@ -209,6 +219,11 @@ def _support_after(x, y, t, p, supported, state, t0, width, height, tau_us):
     row = width + 2
     plane = (height + 2) * row
     for k in range(x.shape[0] - 1, -1, -1):
+        if k >= _AHEAD:  # a hint, as in the forward pass
+            c = p[k - _AHEAD] * plane + (y[k - _AHEAD] + 1) * row + x[k - _AHEAD]
+            _prefetch(state, c - row)
+            _prefetch(state, c)
+            _prefetch(state, c + row)
         xk = x[k]
         yk = y[k]
         if xk < 0 or xk >= width or yk < 0 or yk >= height:

@@ -42,6 +42,7 @@ from evedge._splitmix import _splitmix64
 
 from ._atomic import _store_release
 from ._borrow import _borrowed
+from ._prefetch import _prefetch
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, _lifetime_agrees, _newer_count
 
 _NEVER = np.iinfo(np.int64).min
@@ -89,6 +90,9 @@ _FIT_STRIDE = 3  # burst reuse: per SAE cell a, b of the burst's stored plane an
 
 #: Largest ``n * max|dt|`` for which int64 sums of the window's times equal float64 sums.
 _EXACT_SUM = 2**53
+
+#: The stream kernel asks for the state of the event this many places ahead (:mod:`._prefetch`).
+_AHEAD = 4
 
 
 @njit(cache=True)
@@ -939,6 +943,23 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         ring_rel = thr_rel * ring_tol
     publish = dec.shape[0] > 0
     for j in range(j0, idx.shape[0]):
+        if j + _AHEAD < idx.shape[0]:
+            # a hint (no value changes): the state the event _AHEAD places on will read, on a large
+            # sensor far from this one's and out of the caches (:mod:`._prefetch`)
+            k2 = idx[j + _AHEAD]
+            x2 = x[k2]
+            y2 = y[k2] - row0
+            s2 = (p[k2] if per_pol else 0) * rows * width + y2 * width
+            _prefetch(prev_t, s2 + x2)
+            _prefetch(prev_lt, s2 + x2)
+            _prefetch(prev_pol, s2 + x2)
+            if use_fits:
+                _prefetch(fits, _FIT_STRIDE * (s2 + x2))
+            lo2 = s2 + max(x2 - half, 0) - y2 * width
+            hi2 = s2 + min(x2 + half, width - 1) - y2 * width
+            for yy in range(max(y2 - half, 0), min(y2 + half, rows - 1) + 1):
+                _prefetch(sae, lo2 + yy * width)
+                _prefetch(sae, hi2 + yy * width)
         k = idx[j]
         xk = x[k]
         yk = y[k] - row0
