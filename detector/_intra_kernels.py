@@ -481,12 +481,24 @@ def _fit_points(wf, wi, n, exact, key, delta, thr_us, thr_rel, max_trials, stop_
                     cnt += 1 if r <= thr else 0
                 if cnt < best_n:
                     continue
-                # the summed residual only breaks ties: needed for a candidate that can win
-                cost = 0.0
-                for q in range(m):
-                    r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
-                    r = max(r, 0.0)
-                    cost += r if r <= thr else 0.0
+                # the summed residual only breaks ties, so it is summed only for a tie: a new best's own sum
+                # waits (NaN) until a tie needs it; the candidate's partial sum, which never decreases,
+                # stops once it reaches the best's (it cannot be smaller). The same sums, in the same order.
+                cost = np.nan
+                if cnt == best_n:
+                    if math.isnan(best_cost):
+                        best_cost = 0.0
+                        for q in range(m):
+                            r = abs(wf[_KT, q] - (best_a * wf[_KX, q] + best_b * wf[_KY, q])) - best_slack
+                            r = max(r, 0.0)
+                            best_cost += r if r <= best_thr else 0.0
+                    cost = 0.0
+                    for q in range(m):
+                        r = abs(wf[_KT, q] - (a * wf[_KX, q] + b * wf[_KY, q])) - slack
+                        r = max(r, 0.0)
+                        cost += r if r <= thr else 0.0
+                        if cost >= best_cost:
+                            break
                 if cnt > best_n or cost < best_cost:
                     best_n = cnt
                     best_cost = cost
