@@ -170,6 +170,24 @@ def _expand_lifetimes(kept, lt, vx, vy, valid, out):
     _expand_chunk(kept, lt, vx, vy, valid, out, 0, kept.shape[0], 0)
 
 
+@njit(cache=True)
+def _expand_columns(kept, lt, vx, vy, valid, out_lt, out_vx, out_vy, out_valid):
+    """:func:`_expand_lifetimes` into four plain columns (aligned with all events) instead of records."""
+    i = 0
+    for k in range(kept.shape[0]):
+        if kept[k]:
+            out_lt[k] = lt[i]
+            out_vx[k] = vx[i]
+            out_vy[k] = vy[i]
+            out_valid[k] = valid[i]
+            i += 1
+        else:
+            out_lt[k] = np.nan
+            out_vx[k] = np.nan
+            out_vy[k] = np.nan
+            out_valid[k] = False
+
+
 @njit(parallel=True, cache=True)
 def _kept_offsets(kept):
     """Where each chunk's kept events start among the kept ones (length chunks + 1: the total last)."""

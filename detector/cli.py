@@ -168,6 +168,8 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
 
     from .edges import EdgeImage
     from ._checks import validated
+    from ._stream_kernels import _expand_columns, _kept_columns
+    from .intra import IntraPixelLifetime
     from .pipeline import _check_estimate, _with_tiles, keep_mask, make_method
 
     kept = (keep_mask(filter_name, events, sensor, filter_params, n_tiles=n_tiles) if filter_name
@@ -183,29 +185,51 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
     ends = np.searchsorted(events["t"], frame_t[order], side="right")  # frame i counts events[:ends[i]]
     frames = np.zeros((frame_t.size, sensor.height, sensor.width), dtype=bool)
     f = 0
+    # the built-in estimator on plain columns: the kept events' columns in one pass, its estimates written
+    # into the table's columns in one pass, the edge image fed the same columns (no record copy, packing or
+    # boolean scatter; the same table and frames as the records' path below, tests/detector/test_detect_cli.py)
+    plain = type(est) is IntraPixelLifetime
     with tqdm(total=events.size, unit="ev", desc="lifetimes", disable=quiet) as bar:
         for start in range(0, events.size, _CHUNK):
             stop = min(start + _CHUNK, events.size)
             keep = kept[start:stop]
-            chunk = events[start:stop].compress(keep)  # (faster than boolean indexing on records)
-            with validated(chunk, sensor):  # a subset, in order, of checked events: the stages' checks are O(1)
-                lt = _check_estimate(method, est.process(chunk), chunk.size)
+            if plain:
+                cols = _kept_columns(events[start:stop], keep)
+                est_cols = (est._estimate(*cols) if cols.shape[1] else
+                            (np.empty(0), np.empty(0), np.empty(0), np.empty(0, bool)))
+                _expand_columns(keep, *est_cols, *(table[name][start:stop] for name, _ in LIFETIME_COLUMNS[:4]))
+
+                def feed(a, b, cols=cols, est_cols=est_cols):
+                    image._apply(*(c[a:b] for c in cols), *(c[a:b] for c in est_cols))
+
+                m = cols.shape[1]
+                kept_t = cols[2]
+            else:
+                chunk = events[start:stop].compress(keep)  # (faster than boolean indexing on records)
+                with validated(chunk, sensor):  # a subset, in order, of checked events: the stages' checks are O(1)
+                    lt = _check_estimate(method, est.process(chunk), chunk.size)
                 for name in lt.dtype.names:
                     col = table[name][start:stop]
                     col[...] = False if name == "valid" else np.nan
                     col[keep] = lt[name]
-                # the edge image, frame by frame inside the chunk
-                pos = np.cumsum(keep)  # kept events among the chunk's first j + 1
-                done = 0
-                while f < frame_t.size and ends[f] <= stop:
-                    upto = int(pos[ends[f] - start - 1]) if ends[f] > start else 0
-                    if upto > done:
-                        image.process(chunk[done:upto], lt[done:upto])
-                        done = upto
-                    frames[order[f]] = image.image_at(int(frame_t[order[f]]))
-                    f += 1
-                if done < chunk.size:
-                    image.process(chunk[done:], lt[done:])
+
+                def feed(a, b, chunk=chunk, lt=lt):
+                    with validated(chunk, sensor):
+                        image.process(chunk[a:b], lt[a:b])
+
+                m = chunk.size
+                kept_t = chunk["t"]
+            # the edge image, frame by frame inside the chunk: a frame counts the kept events up to its instant
+            done = 0
+            while f < frame_t.size and ends[f] <= stop:
+                upto = int(np.searchsorted(kept_t, frame_t[order[f]], side="right"))
+                if upto > done:
+                    feed(done, upto)
+                    done = upto
+                frames[order[f]] = image.image_at(int(frame_t[order[f]]))
+                f += 1
+            if done < m:
+                feed(done, m)
             bar.update(stop - start)
     while f < frame_t.size:  # instants after the last event
         frames[order[f]] = image.image_at(int(frame_t[order[f]]))

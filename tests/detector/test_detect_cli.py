@@ -335,6 +335,19 @@ def test_detect_streams_chunks_with_the_library_result(tmp_path, edge_events, mo
         np.testing.assert_array_equal(d.lifetimes["kept"], want.kept)
         np.testing.assert_array_equal(d.edges.images, want_frames)
         assert (out / "edges").exists() == ("--no-png" not in extra)
+    # another estimator goes through the records' path (the built-in one through plain columns): the same check
+    want = run_detect(ev, size, method="mueggler")
+    want_frames = edge_frames(ev[want.kept], want.lifetimes[want.kept], size, times, display="predecessor")
+    assert want.lifetimes["valid"].sum() > 50 and want_frames.any()  # (not a vacuous comparison)
+    out = tmp_path / "o_mueggler"
+    res = CliRunner().invoke(detect, [str(src), "-o", str(out), "--sensor", "24x20", "--quiet", "--times",
+                                      ",".join(map(str, times)), "--no-png", "--method", "mueggler"])
+    assert res.exit_code == 0, res.output
+    d = read_detection(out / "detection.h5")
+    for name in ("lifetime_us", "vx_px_s", "vy_px_s", "valid"):
+        assert d.lifetimes[name].tobytes() == want.lifetimes[name].tobytes(), name
+    np.testing.assert_array_equal(d.lifetimes["kept"], want.kept)
+    np.testing.assert_array_equal(d.edges.images, want_frames)
 
 
 def _index_entries(nbi) -> int:
