@@ -238,19 +238,26 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
 
 
 def _compile_edges(sensor, display) -> None:
-    """Compile (or load) the edge image's kernel on a few events, called as :func:`_estimate` calls it.
+    """Compile (or load) the edge image's and the plain path's kernels on a few events, as :func:`_estimate` does.
 
     The same argument types as the real chunks (checked, read-only events; rows of
     the estimator's output), so no second specialisation is made.
     """
+    from evedge.io.detection import LIFETIME_COLUMNS
+
     from ._checks import validated
     from ._precompile import sample_events
+    from ._stream_kernels import _expand_columns, _kept_columns
     from .edges import EdgeImage
     from .result import empty_lifetimes
 
     ev = sample_events(sensor)
+    keep = np.ones(ev.size, bool)
     with validated(ev, sensor):
         EdgeImage(sensor, display=display).process(ev, empty_lifetimes(ev.size))
+        _kept_columns(ev, keep)  # and the built-in estimator's per-chunk columns (_estimate's plain path)
+    outs = [np.empty(ev.size, dtype) for _, dtype in LIFETIME_COLUMNS[:4]]
+    _expand_columns(keep, *(np.ascontiguousarray(c) for c in outs), *outs)
 
 
 def _versions() -> dict:
