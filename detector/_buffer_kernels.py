@@ -40,6 +40,10 @@ def empty_state(width, height):
     return state
 
 
+#: The scans ask for the state cells of the event this many places ahead (:mod:`._prefetch`).
+_AHEAD = 16
+
+
 @njit(cache=True, inline="always")
 def _walk(state, c, g, base_g, t, prev, supported, lo):
     """Mark the unwalked events of the pixel at ``c``, newest ``g``, no older than ``lo``; then none is left unwalked.
@@ -79,6 +83,11 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, heigh
     plane = (height + 2) * row
     n = x.shape[0]
     for k in range(n_old, n):
+        if k + _AHEAD < n:  # a hint: the three state rows of the event _AHEAD on, 48 bytes each (:mod:`._prefetch`)
+            c2 = p[k + _AHEAD] * plane + (y[k + _AHEAD] + 1) * row + 2 * x[k + _AHEAD]
+            for r2 in (c2 - row, c2, c2 + row):
+                _prefetch(state, r2)
+                _prefetch(state, r2 + 5)
         tk = t[k]
         lo = tk - tau_us
         # "fired within tau" is last_t >= lo and last_t != NEVER: one comparison with lo_n
@@ -160,10 +169,6 @@ def _buffer_scan(x, y, t, p, prev, supported, n_old, base_g, state, width, heigh
 
 I32_MIN = np.iinfo(np.int32).min  # the narrow state's "never fired" (forward pass)
 I32_MAX = np.iinfo(np.int32).max  # and "never fires" (backward pass)
-
-
-#: The one-shot passes ask for the state cells of the event this many places ahead (:mod:`._prefetch`).
-_AHEAD = 16
 
 
 @njit(cache=True)
@@ -420,6 +425,11 @@ def _line_scan(x, y, t, p, supported, n_old, base_g, state, width, height, line_
     plane = (height + 4) * row
     n = x.shape[0]
     for k in range(n_old, n):
+        if k + _AHEAD < n:  # a hint: the five state rows the event _AHEAD on reads, both ends (:mod:`._prefetch`)
+            u2 = p[k + _AHEAD] * plane + (y[k + _AHEAD] + 2) * row + LINE_FIELDS * x[k + _AHEAD]
+            for r2 in (u2 - 2 * row, u2 - row, u2, u2 + row, u2 + 2 * row):
+                _prefetch(state, r2)
+                _prefetch(state, r2 + 5 * LINE_FIELDS - 1)
         tk = t[k]
         lo = tk - line_us
         lo_n = lo + (lo == NEVER)
