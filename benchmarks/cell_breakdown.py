@@ -8,6 +8,7 @@ for the proposed detector:
   the share of those the estimator estimates, and the grid's figures (``sig``, ``med``, ``>2x``,
   ``noise``), for the defaults and for ``--preset`` (``noise`` by default) with the buffer
   preset (``line`` by default);
+  (``--buffer-preset none``: no buffer; ``--intra key=value`` changes the preset's fields);
 * the same with each of the preset's rules turned off in turn (one field back to the
   defaults' value): which rule costs how much coverage and saves how many gross errors;
 * for the preset, the estimates more than 2x off by 0.1 s bin of the recording, against all
@@ -15,7 +16,7 @@ for the proposed detector:
   the first bins.
 
 Run: ``.venv/bin/python benchmarks/cell_breakdown.py [--angle 0] [--speed 10] [--r 5] [--noise 0]
-[--preset noise] [--buffer-preset line]``. Measurements: the README, "Robustness".
+[--preset noise] [--buffer-preset line|paper|none] [--intra key=value ...]``. Measurements: the README, "Robustness".
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _intra_options import PRESETS  # noqa: E402
+from _intra_options import PRESETS, _parse_intra  # noqa: E402
 
 from evedge.bench import robustness as grid  # noqa: E402
 from evedge.detector.buffer import BufferParams, line_params  # noqa: E402
@@ -36,12 +37,13 @@ from evedge.detector.intra import IntraParams  # noqa: E402
 from evedge.detector.pipeline import detect  # noqa: E402
 from evedge.sim import parse_scene, simulate  # noqa: E402
 
-BUFFER_PRESETS = {"paper": BufferParams, "line": line_params}
+BUFFER_PRESETS = {"paper": BufferParams, "line": line_params, "none": lambda: None}  # none: no buffer at all
 
 
 def breakdown(rec, steady_signal, params, buffer_params):
     """``detect`` with these parameters: (result, kept share, estimated share of the kept, the grid's figures)."""
-    res = detect(rec.events, rec.sensor_size, params=params, buffer_params=buffer_params)
+    res = detect(rec.events, rec.sensor_size, params=params, buffer_params=buffer_params,
+                 use_buffer=buffer_params is not None)
     kept = res.kept[steady_signal].mean()
     est = res.lifetimes["valid"][steady_signal & res.kept].mean()
     return res, kept, est, grid.score(rec, res.lifetimes)
@@ -57,7 +59,9 @@ def main(argv=None):
     ap.add_argument("--size", default="96x72")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--preset", choices=sorted(PRESETS), default="noise")
-    ap.add_argument("--buffer-preset", choices=sorted(BUFFER_PRESETS), default="line")
+    ap.add_argument("--buffer-preset", choices=sorted(BUFFER_PRESETS), default="line",
+                    help="the preset's event buffer (none: no buffer, every event to the estimator)")
+    ap.add_argument("--intra", action="append", default=[], metavar="KEY=VALUE", help="IntraParams field on the preset")
     args = ap.parse_args(argv)
     w, h = (int(v) for v in args.size.lower().split("x"))
     kw = {"r": args.r, "noise_hz": args.noise}
@@ -70,12 +74,13 @@ def main(argv=None):
     steady = rec.truth["is_signal"] & np.isfinite(rec.truth["lifetime_us"]) & (t >= int(t[0]) + grid.STEADY_US)
     print(f"{args.kind} {kw}, {w}x{h}, seed {args.seed}: {t.size:,} events over {(t[-1] - t[0]) / 1e6:.2f} s, "
           f"{int(steady.sum()):,} steady-state signal events")
-    preset = PRESETS[args.preset]()
+    preset = _parse_intra(args.intra, PRESETS[args.preset]())
     buffer = BUFFER_PRESETS[args.buffer_preset]()
     header = f"{'setting':44s} {'kept':>6s} {'est|kept':>8s} {'sig':>6s} {'med':>6s} {'>2x':>7s} {'noise':>6s}"
     print(header)
     runs = [("defaults, paper buffer", IntraParams(), BufferParams()),
-            (f"{args.preset}, {args.buffer_preset} buffer", preset, buffer)]
+            (f"{args.preset}{' + ' + ', '.join(args.intra) if args.intra else ''}, {args.buffer_preset} buffer",
+             preset, buffer)]
     base = IntraParams()
     for f in dataclasses.fields(IntraParams):
         if getattr(preset, f.name) != getattr(base, f.name):
