@@ -112,7 +112,7 @@ def test_reuse_off_ignores_the_other_fields(edge_events, random_events):
     """``burst_reuse = 0``: ``burst_warm_refit`` and ``burst_reuse_inliers`` change no byte."""
     size = SensorSize(18, 14)
     ev, _ = _edge_with_noise(edge_events, random_events, size, 0.05, 300)
-    p = noise_params()
+    p = noise_params(burst_reuse=0)
     want = estimate_lifetimes(ev, size, p).tobytes()
     assert estimate_lifetimes(ev, size, replace(p, burst_warm_refit=False, burst_reuse_inliers=3)).tobytes() == want
 
