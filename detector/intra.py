@@ -411,8 +411,12 @@ curved time surface: full grid with the line rule (``--intra refine_tolerance=T`
 rotation cells 5.7-6.6 -> 4.9-5.9 % (0.25), r = 1.7 at 2000 px/s 2.7-3.0 -> 3.2-3.4 %.
 Mixed small gains: not in the presets.
 
-Noise preset (2026-12-07): ``startup_reach = 1.5`` and ``burst_reuse = 2`` joined
-:func:`noise_params` (:data:`NOISE_PRESET`). Full grid, ``benchmarks/robustness_grid.py --preset
+Presets, 2026-12-07: ``startup_reach = 1.5`` (was 1) and ``burst_reuse = 2`` (was 0) joined
+:data:`ROBUST`, so both :func:`robust_params` and :func:`noise_params`. ``robust_params()``, full grid
+with the line rule: 170 / 134 / 97 / 69 -> 184 / 155 / 98 / 87 goal cells (paper buffer 161 / 130 / 97 /
+76 -> 175 / 150 / 99 / 86), noise given a lifetime 8.3 -> 7.0 %, estimator CPU 39.4 -> 13.5 s; on
+``stripes.mat`` 71.3 -> 75.7 % of the kept events estimated, medians 6.69 / 11.87 -> 6.79 / 12.03 ms.
+``noise_params()``, full grid, ``benchmarks/robustness_grid.py --preset
 noise --buffer-preset line --workers 2 --intra ...`` (one session, load ~2, 1 minute each), goal
 cells median error / > 2x / signal / noise: before 184 / 175 / 89 / 97; ``burst_reuse=2`` 186 / 179 /
 93 / 94; ``startup_reach`` 0 / 0.5 / 1.5 / 2: 180 / 171 / 91 / 90, 180 / 171 / 91 / 92, 192 / 178 /
@@ -427,8 +431,8 @@ the noisy cells), first-0.1 s error over the noisy cells 7.1 -> 3.3 %, estimator
 64-127 / 32-63 6.58 / 11.85 -> 6.63 / 11.94 ms (model-free 6.6 / 11.6).
 
 Burst reuse (``burst_reuse``, default 2 since 2026-12-03, the setting A below, neutral with the
-defaults; 0 = off, every event fitted, in :func:`robust_params` (and in :func:`noise_params` until
-2026-12-07, see "noise preset"); with
+defaults; 0 = off, every event fitted, in :func:`robust_params` and :func:`noise_params` until
+2026-12-07 (see "presets, 2026-12-07"); with
 ``burst_warm_refit`` and ``burst_reuse_inliers``). The events of one passage of the edge
 at a pixel (a burst, ``burst_lifetimes``) share one lifetime, so a continuing event may
 take the burst's plane instead of fitting its window again: the estimator's cost
@@ -623,7 +627,7 @@ from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
-__all__ = ["IntraParams", "IntraPixelLifetime", "NOISE_PRESET", "NOISE_RULES", "ROBUST", "WindowFit",
+__all__ = ["IntraParams", "IntraPixelLifetime", "NOISE_RULES", "ROBUST", "WindowFit",
            "estimate_lifetimes", "fit_window", "fit_windows", "noise_params", "robust_params"]
 
 #: Kernel arguments (``IntraPixelLifetime.process``'s tuple) passed before the outputs and scratch arrays of
@@ -720,7 +724,7 @@ class IntraParams:
         cell is ``half (|a| + |b|)`` before the event) goes back before the first
         event the estimator was given since its last reset (the fit still sets
         the pixel's burst state, as with ``border_px``). Default 0 (the paper).
-        Streaming only. See the module notes ("start-up").
+        Streaming only. 1.5 in the presets (since 2026-12-07). See the module notes ("start-up").
     newer_share_max : float
         In (0, 1]. No estimate when more than this share of the window points
         newer than the fitted plane or on it (its inlier band) are newer than
@@ -775,8 +779,8 @@ class IntraParams:
         Below 1, a curved time surface (a rotating edge) lends the refit fewer of
         its outer points. Only with ``refine_window``.
     burst_reuse : int
-        0: off, every event is fitted (the bytes of before 2026-12-03;
-        :func:`robust_params` keeps it off, :func:`noise_params` has 2 since 2026-12-07).
+        0: off, every event is fitted (the bytes of before 2026-12-03; the presets
+        :func:`robust_params` and :func:`noise_params` kept it off until 2026-12-07, and have 2 since).
         2 (default since 2026-12-03, measured neutral with the defaults). ``k >= 1``,
         with ``burst_lifetimes > 0``: an event that continues its pixel's burst,
         whose burst holds a stored plane, is refitted (``burst_warm_refit``) while
@@ -796,7 +800,7 @@ class IntraParams:
         :func:`noise_params` (1.0x / 1.7x); with :func:`noise_params` the warm
         refits are not neutral (more estimates, more noise given a lifetime), but
         together with ``startup_reach = 1.5`` they meet more of the grid's goals
-        (module notes, "noise preset"), so that preset has them.
+        (module notes, "presets, 2026-12-07"), so both presets have them.
     burst_warm_refit : bool
         With ``burst_reuse >= 2``: how a burst's events are refitted before its
         plane is reused. True (default): warm, from the stored plane: its inliers
@@ -928,8 +932,8 @@ class IntraParams:
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
 ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
-          "stale_fraction": 0.5, "startup_reach": 1.0, "refine_window": 9,
-          "burst_reuse": 0}  # reuse measured neutral with the defaults only (module notes, "burst reuse")
+          "stale_fraction": 0.5, "startup_reach": 1.5, "refine_window": 9,
+          "burst_reuse": 2}  # reach 1.5 and reuse since 2026-12-07 (module notes, "presets, 2026-12-07")
 
 
 def _preset(base: dict, overrides: dict) -> IntraParams:
@@ -951,6 +955,8 @@ def robust_params(**overrides) -> IntraParams:
     >>> p = robust_params(seed=3)
     >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed, p.refine_window)
     (3.0, 1.0, True, 3, 9)
+    >>> (p.startup_reach, p.burst_reuse)
+    (1.5, 2)
     >>> robust_params(window_size=7).refine_window
     11
     """
@@ -960,14 +966,8 @@ def robust_params(**overrides) -> IntraParams:
 #: The noise rules measured on ``benchmarks/robustness_grid.py`` (module notes, "noise"), all together.
 NOISE_RULES = {"newer_share_max": 0.25, "lifetime_agreement": 2.0, "passage_gap": 1.0}
 
-#: The noise preset's own settings over :data:`ROBUST` (since 2026-12-07, module notes, "noise preset"): a
-#: longer start-up reach and burst reuse, measured together on the full grid.
-NOISE_PRESET = {"startup_reach": 1.5, "burst_reuse": 2}
-
-
 def noise_params(**overrides) -> IntraParams:
-    """:func:`robust_params` with the noise rules on too (:data:`NOISE_RULES`) and :data:`NOISE_PRESET`, plus any
-    ``overrides``.
+    """:func:`robust_params` with the noise rules on too (:data:`NOISE_RULES`), plus any ``overrides``.
 
     Examples
     --------
@@ -977,7 +977,7 @@ def noise_params(**overrides) -> IntraParams:
     >>> (p.passage_gap, p.startup_reach, p.burst_reuse)
     (1.0, 1.5, 2)
     """
-    return _preset({**ROBUST, **NOISE_RULES, **NOISE_PRESET}, overrides)
+    return _preset({**ROBUST, **NOISE_RULES}, overrides)
 
 
 def noise_args(params: IntraParams) -> np.ndarray | None:
