@@ -61,6 +61,13 @@ count, not the code, is what is left to gain on one core. The event buffer costs
 one-shot two passes, 2026-12-03, ``bench_buffer.py``),
 ``detect``'s own bookkeeping (checks, boolean indexing) ~0.03 us.
 
+On the Gen4-sized input (2026-12-07) a third of the estimator's time per kept event was
+waiting for memory: its 1280x720 state misses the caches at nearly every event. The
+stream kernel and the buffer's passes now ask for the next events' cache lines ahead
+(:mod:`evedge.detector._prefetch`): 947 -> 681 ns per kept event, the buffer 53 -> 35
+ns/event; the rest of the gap to ``stripes.mat`` is work (more events fitted from an empty
+state: see the steady-state line this benchmark prints).
+
 Profile of the estimator by stages (2026-12-01, engineer i12: copies of the
 kernel returning after each stage, start-up rule off so that every event is
 fitted once, CPU time in one run, load ~3; stripes.mat / shapes_translation, ns
