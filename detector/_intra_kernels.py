@@ -961,17 +961,16 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             k2 = idx[j + _AHEAD]
             x2 = x[k2]
             y2 = y[k2] - row0
-            s2 = (p[k2] if per_pol else 0) * rows * width + y2 * width
-            _prefetch(prev_t, s2 + x2)
-            _prefetch(prev_lt, s2 + x2)
-            _prefetch(prev_pol, s2 + x2)
+            b2 = (p[k2] if per_pol else 0) * rows * width  # its SAE plane
+            s2 = b2 + y2 * width + x2
+            _prefetch(prev_t, s2)
+            _prefetch(prev_lt, s2)
+            _prefetch(prev_pol, s2)
             if use_fits:
-                _prefetch(fits, _FIT_STRIDE * (s2 + x2))
-            lo2 = s2 + max(x2 - half, 0) - y2 * width
-            hi2 = s2 + min(x2 + half, width - 1) - y2 * width
-            for yy in range(max(y2 - half, 0), min(y2 + half, rows - 1) + 1):
-                _prefetch(sae, lo2 + yy * width)
-                _prefetch(sae, hi2 + yy * width)
+                _prefetch(fits, _FIT_STRIDE * s2)
+            for yy in range(max(y2 - half, 0), min(y2 + half, rows - 1) + 1):  # each window row's two ends
+                _prefetch(sae, b2 + yy * width + max(x2 - half, 0))
+                _prefetch(sae, b2 + yy * width + min(x2 + half, width - 1))
         k = idx[j]
         xk = x[k]
         yk = y[k] - row0

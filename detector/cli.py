@@ -218,7 +218,7 @@ def _estimate(method, events, sensor, filter_name, filter_params, params, frame_
                         image.process(chunk[a:b], lt[a:b])
 
                 m = chunk.size
-                kept_t = chunk["t"]
+                kept_t = np.ascontiguousarray(chunk["t"])  # once: a strided field would be copied per frame
             # the edge image, frame by frame inside the chunk: a frame counts the kept events up to its instant
             done = 0
             while f < frame_t.size and ends[f] <= stop:

@@ -627,8 +627,8 @@ from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
 from .sae import SurfaceOfActiveEvents
 
-__all__ = ["IntraParams", "IntraPixelLifetime", "NOISE_RULES", "ROBUST", "WindowFit",
-           "estimate_lifetimes", "fit_window", "fit_windows", "noise_params", "robust_params"]
+__all__ = ["IntraParams", "IntraPixelLifetime", "NOISE_RULES", "ROBUST", "WindowFit", "estimate_lifetimes",
+           "fit_window", "fit_windows", "noise_params", "robust_params"]
 
 #: Kernel arguments (``IntraPixelLifetime.process``'s tuple) passed before the outputs and scratch arrays of
 #: :func:`_intra_stream`; those from this index on (added later) come after them.
