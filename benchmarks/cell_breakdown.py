@@ -82,10 +82,12 @@ def main(argv=None):
             (f"{args.preset}{' + ' + ', '.join(args.intra) if args.intra else ''}, {args.buffer_preset} buffer",
              preset, buffer)]
     base = IntraParams()
+    needs = {"refine_window": ("curvature_f",)}  # a field reverted with the options that need it
     for f in dataclasses.fields(IntraParams):
         if getattr(preset, f.name) != getattr(base, f.name):
-            runs.append((f"  {f.name} = {getattr(base, f.name)!r}",
-                         dataclasses.replace(preset, **{f.name: getattr(base, f.name)}), buffer))
+            back = {g: getattr(base, g) for g in (f.name, *needs.get(f.name, ()))}
+            runs.append(("  " + ", ".join(f"{g} = {v!r}" for g, v in back.items()),
+                         dataclasses.replace(preset, **back), buffer))
     results = {}
     for label, params, buf in runs:
         res, kept, est, s = breakdown(rec, steady, params, buf)

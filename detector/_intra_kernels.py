@@ -714,7 +714,7 @@ def _gather(sae, wf, wi, base, xk, yk, tk, width, height, half, oldest):
 
 @njit(cache=True)
 def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a, b, delta, thr_us, thr_rel,
-            intercept):
+            intercept, curv=None):
     """The fit ``dt = a dx + b dy`` refitted on its inliers and on the outer ring's points on its plane.
 
     The fit saw the ``n`` points of the window of half-size ``fh`` (``wi[_INL]``
@@ -727,6 +727,13 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
     threshold. Least squares on the inliers, the joined points and the current
     event, as the fit's own refit; returns ``(a, b)`` unchanged when no ring point
     joins or the refit is flat, singular or not finite.
+
+    Curvature (``curv``, None = off, pruned when compiled): on the same points, the
+    quadratic ``dt = a dx + b dy + c dx^2 + d dx dy + e dy^2`` (``+ t0`` with
+    ``intercept``) too, by least squares (:func:`_quad_solve`); its slopes at the
+    current event, ``(a, b)``, replace the plane's when the F statistic of the three
+    curvature terms exceeds ``curv`` (:func:`_prefers_quadratic`). Tried also when no
+    ring point joins.
     """
     s1 = 1.0
     sx = 0.0
@@ -737,11 +744,30 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
     syy = 0.0
     sxt = 0.0
     syt = 0.0
+    # curvature: the higher moments of the points (sums of dx^i dy^j, of dx^i dy^j dt and of dt^2)
+    s30 = s21 = s12 = s03 = s40 = s31 = s22 = s13 = s04 = s20t = s11t = s02t = stt = 0.0
     for i in range(n):
         if wi[_INL, i] == 1:
             xq = wf[_DX, i]
             yq = wf[_DY, i]
             tq = wf[_DT, i]
+            if curv is not None:
+                xx = xq * xq
+                xy = xq * yq
+                yy = yq * yq
+                s30 += xx * xq
+                s21 += xx * yq
+                s12 += xq * yy
+                s03 += yy * yq
+                s40 += xx * xx
+                s31 += xx * xy
+                s22 += xx * yy
+                s13 += xy * yy
+                s04 += yy * yy
+                s20t += xx * tq
+                s11t += xy * tq
+                s02t += yy * tq
+                stt += tq * tq
             s1 += 1.0
             sx += xq
             sy += yq
@@ -770,6 +796,23 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
             tq = float(v - tk)
             if abs(tq - (a * xq + b * yq + c)) - slack > thr:
                 continue
+            if curv is not None:
+                xx = xq * xq
+                xy = xq * yq
+                yy = yq * yq
+                s30 += xx * xq
+                s21 += xx * yq
+                s12 += xq * yy
+                s03 += yy * yq
+                s40 += xx * xx
+                s31 += xx * xy
+                s22 += xx * yy
+                s13 += xy * yy
+                s04 += yy * yy
+                s20t += xx * tq
+                s11t += xy * tq
+                s02t += yy * tq
+                stt += tq * tq
             joined += 1
             s1 += 1.0
             sx += xq
@@ -780,14 +823,102 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
             syy += yq * yq
             sxt += xq * tq
             syt += yq * tq
-    if joined == 0:
+    if joined == 0 and curv is None:
         return a, b
     solved, a2, b2 = _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept)
     if not solved:
         return a, b
     if not (a2 * a2 + b2 * b2 > 0.0) or not math.isfinite(a2) or not math.isfinite(b2):
         return a, b
+    if curv is not None:
+        # the plane's residual sum of squares from the same sums (least squares: sum r^2 = sum r t)
+        c2 = (st - a2 * sx - b2 * sy) / s1 if intercept else 0.0
+        rss_plane = stt - a2 * sxt - b2 * syt - c2 * st
+        _quad_fill(wf, s1, sx, sy, sxx, sxy, syy, s30, s21, s12, s03, s40, s31, s22, s13, s04, st, sxt, syt, s20t,
+                   s11t, s02t)
+        ok, qa, qb, rss_quad = _quad_solve(wf, intercept, stt)
+        # observations: the current event is one with an intercept; through it, it fixes nothing
+        n_obs = s1 if intercept else s1 - 1.0
+        if ok and _prefers_quadratic(rss_plane, rss_quad, n_obs - (6.0 if intercept else 5.0), curv):
+            if qa * qa + qb * qb > 0.0 and math.isfinite(qa) and math.isfinite(qb):
+                return qa, qb
+        if joined == 0:
+            return a, b
     return a2, b2
+
+
+#: Curvature (:func:`_refine`): the quadratic's normal equations, 6 x 7 augmented, flat in row ``_CA`` of ``wf``
+#: (:func:`_quad_fill`), its original right-hand side after them.
+_QN = 6
+_QW = _QN + 1
+#: Least window cells of a scratch whose row ``_CA`` holds the quadratic's equations (``_QN * _QW + _QN`` values).
+QUAD_SCRATCH = _QN * _QW + _QN
+
+
+@njit(cache=True, inline="always")
+def _quad_fill(wf, s1, sx, sy, sxx, sxy, syy, s30, s21, s12, s03, s40, s31, s22, s13, s04, st, sxt, syt, s20t, s11t,
+               s02t):
+    """The quadratic's normal equations (basis ``1, dx, dy, dx^2, dx dy, dy^2``) from the points' moments, 6 x 7
+    augmented, flat in row ``_CA`` of ``wf`` (``s1`` counts the current event, the origin)."""
+    g = (s1, sx, sy, sxx, sxy, syy, st,
+         sx, sxx, sxy, s30, s21, s12, sxt,
+         sy, sxy, syy, s21, s12, s03, syt,
+         sxx, s30, s21, s40, s31, s22, s20t,
+         sxy, s21, s12, s31, s22, s13, s11t,
+         syy, s12, s03, s22, s13, s04, s02t)
+    for i in range(_QN * _QW):
+        wf[_CA, i] = g[i]
+
+
+@njit(cache=True)
+def _quad_solve(wf, intercept, stt):
+    """Solve the normal equations :func:`_quad_fill` wrote (Gaussian elimination, partial pivoting, in place).
+
+    Without ``intercept`` the basis is ``dx, dy, dx^2, dx dy, dy^2`` (through the current
+    event). Returns ``(solved, a, b, rss)``: the slopes at the current event and the
+    residual sum of squares ``stt - beta . rhs``; ``solved`` is False when a pivot is
+    not above ``1e-9`` of the largest diagonal term (the points fix no quadratic).
+    """
+    q0 = 0 if intercept else 1
+    rhs = _QN * _QW  # the original right-hand side, kept for the residual sum
+    scale = 0.0
+    for i in range(q0, _QN):
+        wf[_CA, rhs + i] = wf[_CA, i * _QW + _QN]
+        scale = max(scale, abs(wf[_CA, i * _QW + i]))
+    for c in range(q0, _QN):
+        piv = c
+        for r in range(c + 1, _QN):
+            if abs(wf[_CA, r * _QW + c]) > abs(wf[_CA, piv * _QW + c]):
+                piv = r
+        if not abs(wf[_CA, piv * _QW + c]) > 1e-9 * scale:
+            return False, np.nan, np.nan, np.nan
+        if piv != c:
+            for j in range(q0, _QW):
+                v = wf[_CA, c * _QW + j]
+                wf[_CA, c * _QW + j] = wf[_CA, piv * _QW + j]
+                wf[_CA, piv * _QW + j] = v
+        for r in range(c + 1, _QN):
+            f = wf[_CA, r * _QW + c] / wf[_CA, c * _QW + c]
+            for j in range(c, _QW):
+                wf[_CA, r * _QW + j] -= f * wf[_CA, c * _QW + j]
+    for c in range(_QN - 1, q0 - 1, -1):  # back substitution: the solution in column _QN
+        v = wf[_CA, c * _QW + _QN]
+        for j in range(c + 1, _QN):
+            v -= wf[_CA, c * _QW + j] * wf[_CA, j * _QW + _QN]
+        wf[_CA, c * _QW + _QN] = v / wf[_CA, c * _QW + c]
+    rss = stt
+    for i in range(q0, _QN):
+        rss -= wf[_CA, i * _QW + _QN] * wf[_CA, rhs + i]
+    return True, wf[_CA, 1 * _QW + _QN], wf[_CA, 2 * _QW + _QN], rss
+
+
+@njit(cache=True, inline="always")
+def _prefers_quadratic(rss_plane, rss_quad, dof, f_min):
+    """The F test of the quadratic's three curvature terms against the plane: ``F > f_min`` with ``dof`` residual
+    degrees of freedom of the quadratic (at least 3, else the plane), written without a division."""
+    if dof < 3.0:
+        return False
+    return (rss_plane - rss_quad) * dof > f_min * 3.0 * max(rss_quad, 0.0)
 
 
 @njit(cache=True)
@@ -861,7 +992,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                   own_hi, dec, dec_lt, per_pol, half, delta, thr_us, thr_rel, max_trials, stop_prob, min_points,
                   min_inliers, intercept, fallback, seed, gap_ratio, on_plane, startup, border, jump_check, stale_frac,
                   t_start, reach_px, noise, out_lt, out_vx, out_vy, out_valid, wf, wi, ls_first, refine=None,
-                  reuse=0, reuse_warm=True, reuse_inliers=0, fits=None, ring_tol=1.0):
+                  reuse=0, reuse_warm=True, reuse_inliers=0, fits=None, ring_tol=1.0, curv=None):
     """SAE update, window gathering, 2-means and RANSAC for the events ``idx[j0:]`` in order.
 
     ``wf, wi`` are the scratch arrays of :func:`_scratch` for the window's cells
@@ -918,7 +1049,8 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
     2-means, RANSAC, the rules) sees the window of half-size ``refine``, and
     :func:`_refine` refits its plane with the points of the window of half-size
     ``half`` on it (``half`` is then the radius the event reads, for the strips)
-    whose residual is within ``ring_tol`` times the fit's inlier threshold.
+    whose residual is within ``ring_tol`` times the fit's inlier threshold; with
+    ``curv`` (None = off) it takes a quadratic's slopes where the points prefer one.
 
     Burst reuse (``reuse = k > 0``; ``fits``, float64 of :data:`_FIT_STRIDE` per SAE
     cell: ``a, b`` of the plane stored for the pixel's current burst, NaN = none,
@@ -1015,7 +1147,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 if refine is not None:
                     if ok:
                         a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
-                                       ring_us, ring_rel, intercept)
+                                       ring_us, ring_rel, intercept, curv)
         for attempt in range(0 if ok else 2):
             if cont or trial:
                 tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
@@ -1037,7 +1169,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
             if refine is not None:
                 if ok:
                     a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
-                                   ring_us, ring_rel, intercept)
+                                   ring_us, ring_rel, intercept, curv)
             if not trial:
                 break
             trial = False

@@ -371,7 +371,7 @@ def _flush(x, y, t, p, g0, seg, sae, prev_t, prev_lt, prev_pol, fits, row0, rows
         bidx[i] = seg[bpos[i]]
     _intra_stream(x, y, t, p, bidx[:m], 0, g0, sae, prev_t, prev_lt, prev_pol, kargs[0], width, height, row0, rows,
                   own_lo, own_hi, dec, dec_lt, kargs[1], kargs[2], *kargs[3:22], bl[:m], bvx[:m], bvy[:m],
-                  bvalid[:m], wf, wi, *kargs[22:27], fits, kargs[27])
+                  bvalid[:m], wf, wi, *kargs[22:27], fits, kargs[27], kargs[28])
     for i in range(m):
         jp = bpos[i]
         out_lt[jp] = bl[i]

@@ -618,7 +618,8 @@ import numpy as np
 from evedge._validate import check_bool, check_integer, check_positive, check_real
 
 from ._checks import check_events, check_not_before, check_sensor_size
-from ._intra_kernels import _FIT_STRIDE, _NEVER, _fit_windows, _intra_stream, off_as_none, scratch_arrays
+from ._intra_kernels import (_FIT_STRIDE, _NEVER, QUAD_SCRATCH, _fit_windows, _intra_stream, off_as_none,
+                             scratch_arrays)
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, N_NOISE
 from ._stream_kernels import _pack_lifetimes, _record_columns, _record_columns_par
 from ._tiles import check_n_tiles, intra_tiled
@@ -778,6 +779,15 @@ class IntraParams:
         default): the fit's threshold itself, the bytes of before this option.
         Below 1, a curved time surface (a rotating edge) lends the refit fewer of
         its outer points. Only with ``refine_window``.
+    curvature_f : float
+        0 (the default, off: the paper's plane). Otherwise the ring refit also fits
+        the quadratic time surface ``dt = a dx + b dy + c dx^2 + d dx dy + e dy^2``
+        through the current event (with ``refit_intercept``, plus an offset) on the
+        same points, and takes its slopes at the event (``a, b``: lifetime and flow)
+        when the F statistic of the three curvature terms exceeds this value: where
+        the edge's normal speed changes across the window (rotation, curved edges),
+        a plane gives the slopes at the centroid of the past points, not at the
+        event. Needs ``refine_window``. See the module notes ("curvature").
     burst_reuse : int
         0: off, every event is fitted (the bytes of before 2026-12-03; the presets
         :func:`robust_params` and :func:`noise_params` kept it off until 2026-12-07, and have 2 since).
@@ -861,6 +871,7 @@ class IntraParams:
     ls_first: float = 0.5
     refine_window: int = 0
     refine_tolerance: float = 1.0
+    curvature_f: float = 0.0
     burst_reuse: int = 2
     burst_warm_refit: bool = True
     burst_reuse_inliers: int = 8
@@ -910,6 +921,10 @@ class IntraParams:
             raise ValueError(f"{own}.refine_window must be 0 (off) or odd and > window_size = {self.window_size}, "
                              f"got {self.refine_window}")
         check_real(own, "refine_tolerance", self.refine_tolerance, 0.0, 1.0, low_open=True, high_open=False)
+        check_positive(own, "curvature_f", self.curvature_f, allow_zero=True)
+        if self.curvature_f and not self.refine_window:
+            raise ValueError(f"{own}.curvature_f = {self.curvature_f} needs the ring refit (refine_window > 0): the "
+                             "quadratic is fitted on the ring refit's points")
         check_fill(own, self.fill_neighbours, self.fill_tolerance, self.fill_agreement, self.fill_arrival, prefix="fill_")
         check_positive(own, "seed", self.seed, integer=True, allow_zero=True)
         if self.seed >= 2**63:
@@ -926,14 +941,15 @@ class IntraParams:
         for name in ("delta_px", "inlier_threshold_us", "inlier_threshold_rel", "stop_probability", "burst_lifetimes",
                      "split_gap_ratio", "event_on_plane", "stale_fraction", "startup_reach", "newer_share_max",
                      "burst_span_lifetimes", "lifetime_agreement", "passage_gap", "ls_first", "fill_tolerance", "fill_agreement",
-                     "fill_arrival", "refine_tolerance"):
+                     "fill_arrival", "refine_tolerance", "curvature_f"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
 
 #: The robustness options measured on ``benchmarks/robustness_grid.py`` (module notes), all together.
 ROBUST = {"split_gap_ratio": 3.0, "event_on_plane": 1.0, "burst_startup": True, "split_jump_check": True,
           "stale_fraction": 0.5, "startup_reach": 1.5, "refine_window": 9,
-          "burst_reuse": 2}  # reach 1.5 and reuse since 2026-12-07 (module notes, "presets, 2026-12-07")
+          "burst_reuse": 2,  # reach 1.5 and reuse since 2026-12-07 (module notes, "presets, 2026-12-07")
+          "curvature_f": 16.0}  # since 2026-12-07, later (module notes, "curvature")
 
 
 def _preset(base: dict, overrides: dict) -> IntraParams:
@@ -941,6 +957,8 @@ def _preset(base: dict, overrides: dict) -> IntraParams:
     if "window_size" in overrides and "refine_window" not in overrides and kw.get("refine_window"):
         # the ring keeps its width (two cells each side of the default fit window) around another one
         kw["refine_window"] = int(overrides["window_size"]) + ROBUST["refine_window"] - IntraParams.window_size
+    if "refine_window" in overrides and not overrides["refine_window"] and "curvature_f" not in overrides:
+        kw["curvature_f"] = 0.0  # the quadratic is fitted on the ring's points: no ring, no quadratic
     return IntraParams(**kw)
 
 
@@ -948,17 +966,20 @@ def robust_params(**overrides) -> IntraParams:
     """:class:`IntraParams` with the robustness options on (:data:`ROBUST`), plus any ``overrides``.
 
     An overridden ``window_size`` keeps the ring refit two cells wide around it
-    (``refine_window = window_size + 4``) unless ``refine_window`` is given too.
+    (``refine_window = window_size + 4``) unless ``refine_window`` is given too;
+    ``refine_window = 0`` turns the ring's quadratic (``curvature_f``) off too.
 
     Examples
     --------
     >>> p = robust_params(seed=3)
     >>> (p.split_gap_ratio, p.event_on_plane, p.burst_startup, p.seed, p.refine_window)
     (3.0, 1.0, True, 3, 9)
-    >>> (p.startup_reach, p.burst_reuse)
-    (1.5, 2)
+    >>> (p.startup_reach, p.burst_reuse, p.curvature_f)
+    (1.5, 2, 16.0)
     >>> robust_params(window_size=7).refine_window
     11
+    >>> robust_params(refine_window=0).curvature_f
+    0.0
     """
     return _preset(ROBUST, overrides)
 
@@ -1042,7 +1063,8 @@ class IntraPixelLifetime:
         self.params = _check_params(params)
         self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
-        self._scratch = scratch_arrays(self.params.window_size**2)  # the serial kernel's, reused by every chunk
+        # the serial kernel's, reused by every chunk (the ring refit's quadratic needs a row of QUAD_SCRATCH)
+        self._scratch = scratch_arrays(max(self.params.window_size**2, QUAD_SCRATCH if self.params.curvature_f else 0))
         pr = self.params  # the neighbour fill (off: None), run after the kernel on its output
         self._fill = NeighbourFill(self.sensor_size, neighbours=pr.fill_neighbours, tolerance=pr.fill_tolerance,
                                    agreement=pr.fill_agreement, arrival=pr.fill_arrival, per_polarity=pr.per_polarity,
@@ -1109,14 +1131,15 @@ class IntraPixelLifetime:
                 pr.ls_first,  # from index _N_ARGS on: after the scratch arrays (new arguments at the end)
                 pr.window_size // 2 if pr.refine_window else None,  # the ring refit: off as None, not compiled
                 pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers,  # burst reuse (then its plane array)
-                pr.refine_tolerance)  # the ring refit's threshold, after the plane array
+                pr.refine_tolerance,  # the ring refit's threshold, after the plane array
+                off_as_none(pr.curvature_f))  # the ring refit's quadratic: off as None, not compiled
         sae = self.sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
                           self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half,
-                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:-1], self._prev_fit,
-                          args[-1])
+                          *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:-2], self._prev_fit,
+                          *args[-2:])
         else:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))

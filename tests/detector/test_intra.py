@@ -385,17 +385,52 @@ def ref_ring_refit(sae, plane, x, y, t, size, p: IntraParams, inl, a, b, oldest=
                 d = float(sae[q] - t)
                 if abs(d - (a * ox + b * oy + c)) - slack <= thr:
                     joined.append((float(ox), float(oy), d))
-    if not joined:
+    if not joined and not p.curvature_f:
         return a, b
-    m = np.array(pts + joined)
-    if p.refit_intercept:
-        m = m - m.mean(axis=0)
+    raw = np.array(pts + joined)
+    m = raw - raw.mean(axis=0) if p.refit_intercept else raw
     xy, dt = m[:, :2], m[:, 2]
     g = xy.T @ xy
     if not np.linalg.det(g) > 1e-9 * g[0, 0] * g[1, 1]:
         return a, b
     a2, b2 = np.linalg.solve(g, xy.T @ dt)
-    return (a2, b2) if a2 * a2 + b2 * b2 > 0 and math.isfinite(a2) and math.isfinite(b2) else (a, b)
+    if not (a2 * a2 + b2 * b2 > 0 and math.isfinite(a2) and math.isfinite(b2)):
+        return a, b
+    if p.curvature_f:
+        quad = ref_quadratic(raw, a2, b2, p)
+        if quad is not None:
+            return quad
+        if not joined:
+            return a, b
+    return a2, b2
+
+
+def ref_quadratic(pts, a, b, p: IntraParams):
+    """curvature_f: the quadratic ``dt = a dx + b dy + c dx^2 + d dx dy + e dy^2`` (+ offset with an intercept) by
+    numpy least squares on the ring refit's points ``pts`` (the current event first); its slopes at the event when
+    the F statistic of its three curvature terms against the plane ``a, b`` exceeds ``curvature_f``, else None."""
+    x, y, t = pts[:, 0], pts[:, 1], pts[:, 2]
+    cols = [x, y, x * x, x * y, y * y]
+    plane = [x, y]
+    if p.refit_intercept:
+        cols.insert(0, np.ones_like(x))
+        plane.insert(0, np.ones_like(x))
+    else:  # through the current event: its own point fixes nothing
+        x, y, t = x[1:], y[1:], t[1:]
+        cols = [c[1:] for c in cols]
+        plane = [c[1:] for c in plane]
+    design = np.stack(cols, axis=1)
+    if np.linalg.matrix_rank(design) < design.shape[1]:
+        return None
+    beta = np.linalg.lstsq(design, t, rcond=None)[0]
+    rss_q = float(np.sum((t - design @ beta) ** 2))
+    pl = np.linalg.lstsq(np.stack(plane, axis=1), t, rcond=None)[0]
+    rss_p = float(np.sum((t - np.stack(plane, axis=1) @ pl) ** 2))
+    dof = t.size - design.shape[1]
+    if dof < 3 or not (rss_p - rss_q) * dof > p.curvature_f * 3.0 * max(rss_q, 0.0):
+        return None
+    qa, qb = beta[-5], beta[-4]
+    return (qa, qb) if qa * qa + qb * qb > 0 and math.isfinite(qa) and math.isfinite(qb) else None
 
 
 def assert_lifetimes_close(got, want):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from evedge.detector.intra import IntraParams, IntraPixelLifetime, estimate_lifetimes, noise_params, robust_params
-from evedge.events import SensorSize
+from evedge.events import SensorSize, make_events
 
 from .test_intra import assert_lifetimes_close, ref_stream
 
@@ -40,7 +40,7 @@ def test_ring_refit_reduces_timing_noise_keeps_decisions(edge_events):
     ev, lifetime = _jittered_edge(edge_events, size, 0.06, rng=1)
     ring_p = robust_params()  # refine_window 9
     assert ring_p.refine_window == 9
-    plain = ref_stream(ev, size, replace(ring_p, refine_window=0))  # the reference: no new kernel variant
+    plain = ref_stream(ev, size, replace(ring_p, refine_window=0, curvature_f=0.0))  # the reference: no new kernel variant
     ring = estimate_lifetimes(ev, size, ring_p)
     err = {k: np.nanmedian(np.abs(r["lifetime_us"][r["valid"]] / lifetime - 1)) for k, r in (("5", plain),
                                                                                         ("9", ring))}
@@ -109,3 +109,85 @@ def test_refine_tolerance_selects_ring_points(edge_events):
             IntraParams(refine_tolerance=bad)
     with pytest.raises(TypeError, match="refine_tolerance"):
         IntraParams(refine_tolerance="0.5")
+
+
+# ---- curvature (IntraParams.curvature_f) ---------------------------------------------------------
+
+
+def _curved_front(size, speed_px_s=500.0, k=0.02):
+    """Every pixel fires once when the front ``x + k x y = speed t`` reaches it: a time surface
+    ``t = (x + k x y) / speed`` whose gradient turns along the edge (as a rotating edge's does)."""
+    yy, xx = np.mgrid[0:size.height, 0:size.width]
+    t_us = np.round(1e6 * (xx + k * xx * yy) / speed_px_s).astype(np.int64) + 1000
+    order = np.argsort(t_us.ravel(), kind="stable")
+    ev = make_events(xx.ravel()[order], yy.ravel()[order], t_us.ravel()[order], np.ones(order.size, bool))
+    gx = 1e6 * (1 + k * ev["y"]) / speed_px_s
+    gy = 1e6 * k * ev["x"] / speed_px_s
+    return ev, np.hypot(gx, gy)
+
+
+@pytest.mark.parametrize("intercept", [True, False])
+def test_curvature_matches_the_reference(edge_events, random_events, intercept):
+    """Kernel = slow reference (numpy least squares of the quadratic, the same F test) on a curved front, a
+    jittered edge and random events, with and without the refit's free offset."""
+    size = SensorSize(16, 12)
+    p = noise_params(refine_window=7, min_points=4, min_inliers=4, seed=3, curvature_f=2.0,
+                     refit_intercept=intercept)
+    for ev in (_curved_front(size)[0], _jittered_edge(edge_events, size, 0.05)[0]):
+        got = estimate_lifetimes(ev, size, p)
+        assert_lifetimes_close(got, ref_stream(ev, size, p))
+        assert got["valid"].mean() > 0.3
+    noise = random_events(500, 9, 7, duration_us=30_000, rng=4)
+    assert_lifetimes_close(estimate_lifetimes(noise, SensorSize(9, 7), p), ref_stream(noise, SensorSize(9, 7), p))
+
+
+def test_curvature_gives_the_slopes_at_the_event():
+    """On a curved time surface the plane through the past points gives the slopes at their centroid, behind
+    the event; the quadratic gives them at the event: the known gradient."""
+    size = SensorSize(30, 24)
+    ev, truth = _curved_front(size)
+    base = IntraParams(refine_window=9, startup_reach=0.0, refit_intercept=False)
+    plane = estimate_lifetimes(ev, size, base)
+    quad = estimate_lifetimes(ev, size, replace(base, curvature_f=4.0))
+    inner = (ev["x"] >= 6) & (ev["x"] < size.width - 4) & (ev["y"] >= 4) & (ev["y"] < size.height - 4)
+    v = inner & plane["valid"] & quad["valid"]
+    assert v.sum() > 150
+    err_plane = np.abs(plane["lifetime_us"][v] / truth[v] - 1)
+    err_quad = np.abs(quad["lifetime_us"][v] / truth[v] - 1)
+    # the timestamps 2000 x + 40 x y us are integers: exactly on the quadratic, whose slopes are then exact
+    assert np.max(err_quad) < 1e-9 and np.median(err_plane) > 5e-3, (np.max(err_quad), np.median(err_plane))
+
+
+def test_curvature_keeps_a_plane_and_the_strips(edge_events, random_events):
+    """A straight edge without jitter prefers no quadratic (the same slopes as without the option, to rounding);
+    strips and chunks give the serial bytes with the option on."""
+    size = SensorSize(30, 24)
+    ev, lifetime = edge_events(size.width, size.height, 250.0, 0.3, n_edges=1)
+    a = estimate_lifetimes(ev, size, robust_params())
+    b = estimate_lifetimes(ev, size, robust_params(curvature_f=16.0))
+    v = a["valid"] & b["valid"]
+    assert v.sum() > 300 and np.mean(a["valid"] == b["valid"]) > 0.99
+    np.testing.assert_allclose(b["lifetime_us"][v], lifetime, rtol=5e-4)
+    size = SensorSize(24, 20)
+    ev, _ = _jittered_edge(edge_events, size, 0.08, rng=2)
+    noise = random_events(1500, size.width, size.height, duration_us=int(ev["t"][-1]), rng=5)
+    ev = np.sort(np.concatenate([ev, noise]), order="t", kind="stable")
+    p = noise_params(curvature_f=4.0)
+    want = estimate_lifetimes(ev, size, p)
+    assert want["valid"].sum() > 100
+    for n_tiles in (2, 3):
+        np.testing.assert_array_equal(estimate_lifetimes(ev, size, p, n_tiles=n_tiles).view(np.uint8),
+                                      want.view(np.uint8))
+    est = IntraPixelLifetime(size, p)
+    parts = [est.process(c) for c in np.array_split(ev, 7)]
+    np.testing.assert_array_equal(np.concatenate(parts).view(np.uint8), want.view(np.uint8))
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
+def test_bad_curvature_is_a_clear_error(bad):
+    with pytest.raises(ValueError, match="curvature_f"):
+        robust_params(curvature_f=bad)
+    with pytest.raises(ValueError, match="curvature_f.*refine_window"):
+        IntraParams(curvature_f=4.0)
+    with pytest.raises(TypeError, match="curvature_f"):
+        robust_params(curvature_f="4")
