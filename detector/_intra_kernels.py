@@ -831,17 +831,19 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
     if not (a2 * a2 + b2 * b2 > 0.0) or not math.isfinite(a2) or not math.isfinite(b2):
         return a, b
     if curv is not None:
-        # the plane's residual sum of squares from the same sums (least squares: sum r^2 = sum r t)
-        c2 = (st - a2 * sx - b2 * sy) / s1 if intercept else 0.0
-        rss_plane = stt - a2 * sxt - b2 * syt - c2 * st
-        _quad_fill(wf, s1, sx, sy, sxx, sxy, syy, s30, s21, s12, s03, s40, s31, s22, s13, s04, st, sxt, syt, s20t,
-                   s11t, s02t)
-        ok, qa, qb, rss_quad = _quad_solve(wf, intercept, stt)
-        # observations: the current event is one with an intercept; through it, it fixes nothing
-        n_obs = s1 if intercept else s1 - 1.0
-        if ok and _prefers_quadratic(rss_plane, rss_quad, n_obs - (6.0 if intercept else 5.0), curv):
-            if qa * qa + qb * qb > 0.0 and math.isfinite(qa) and math.isfinite(qb):
-                return qa, qb
+        # the quadratic's residual degrees of freedom: the current event is an observation with an
+        # intercept; through it, it fixes nothing
+        dof = (s1 - 6.0) if intercept else (s1 - 1.0 - 5.0)
+        if dof >= 3.0:
+            # the plane's residual sum of squares from the same sums (least squares: sum r^2 = sum r t)
+            c2 = (st - a2 * sx - b2 * sy) / s1 if intercept else 0.0
+            rss_plane = stt - a2 * sxt - b2 * syt - c2 * st
+            _quad_fill(wf, s1, sx, sy, sxx, sxy, syy, s30, s21, s12, s03, s40, s31, s22, s13, s04, st, sxt, syt,
+                       s20t, s11t, s02t)
+            ok, qa, qb, rss_quad = _quad_solve(wf, intercept, stt)
+            if ok and _prefers_quadratic(rss_plane, rss_quad, dof, curv):
+                if qa * qa + qb * qb > 0.0 and math.isfinite(qa) and math.isfinite(qb):
+                    return qa, qb
         if joined == 0:
             return a, b
     return a2, b2
@@ -915,9 +917,7 @@ def _quad_solve(wf, intercept, stt):
 @njit(cache=True, inline="always")
 def _prefers_quadratic(rss_plane, rss_quad, dof, f_min):
     """The F test of the quadratic's three curvature terms against the plane: ``F > f_min`` with ``dof`` residual
-    degrees of freedom of the quadratic (at least 3, else the plane), written without a division."""
-    if dof < 3.0:
-        return False
+    degrees of freedom of the quadratic (the caller asks for at least 3), written without a division."""
     return (rss_plane - rss_quad) * dof > f_min * 3.0 * max(rss_quad, 0.0)
 
 
