@@ -744,30 +744,14 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
     syy = 0.0
     sxt = 0.0
     syt = 0.0
-    # curvature: the higher moments of the points (sums of dx^i dy^j, of dx^i dy^j dt and of dt^2)
-    s30 = s21 = s12 = s03 = s40 = s31 = s22 = s13 = s04 = s20t = s11t = s02t = stt = 0.0
+    mom = _NO_MOMENTS  # curvature: the points' higher moments (:func:`_moments_add`)
     for i in range(n):
         if wi[_INL, i] == 1:
             xq = wf[_DX, i]
             yq = wf[_DY, i]
             tq = wf[_DT, i]
             if curv is not None:
-                xx = xq * xq
-                xy = xq * yq
-                yy = yq * yq
-                s30 += xx * xq
-                s21 += xx * yq
-                s12 += xq * yy
-                s03 += yy * yq
-                s40 += xx * xx
-                s31 += xx * xy
-                s22 += xx * yy
-                s13 += xy * yy
-                s04 += yy * yy
-                s20t += xx * tq
-                s11t += xy * tq
-                s02t += yy * tq
-                stt += tq * tq
+                mom = _moments_add(mom, xq, yq, tq)
             s1 += 1.0
             sx += xq
             sy += yq
@@ -797,22 +781,7 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
             if abs(tq - (a * xq + b * yq + c)) - slack > thr:
                 continue
             if curv is not None:
-                xx = xq * xq
-                xy = xq * yq
-                yy = yq * yq
-                s30 += xx * xq
-                s21 += xx * yq
-                s12 += xq * yy
-                s03 += yy * yq
-                s40 += xx * xx
-                s31 += xx * xy
-                s22 += xx * yy
-                s13 += xy * yy
-                s04 += yy * yy
-                s20t += xx * tq
-                s11t += xy * tq
-                s02t += yy * tq
-                stt += tq * tq
+                mom = _moments_add(mom, xq, yq, tq)
             joined += 1
             s1 += 1.0
             sx += xq
@@ -835,6 +804,7 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
         # intercept; through it, it fixes nothing
         dof = (s1 - 6.0) if intercept else (s1 - 1.0 - 5.0)
         if dof >= 3.0:
+            s30, s21, s12, s03, s40, s31, s22, s13, s04, s20t, s11t, s02t, stt = mom
             # the plane's residual sum of squares from the same sums (least squares: sum r^2 = sum r t)
             c2 = (st - a2 * sx - b2 * sy) / s1 if intercept else 0.0
             rss_plane = stt - a2 * sxt - b2 * syt - c2 * st
@@ -855,6 +825,22 @@ _QN = 6
 _QW = _QN + 1
 #: Least window cells of a scratch whose row ``_CA`` holds the quadratic's equations (``_QN * _QW + _QN`` values).
 QUAD_SCRATCH = _QN * _QW + _QN
+
+
+#: No point yet: :func:`_moments_add`'s thirteen sums.
+_NO_MOMENTS = (0.0,) * 13
+
+
+@njit(cache=True, inline="always")
+def _moments_add(m, xq, yq, tq):
+    """The point ``(xq, yq, tq)`` added to the moments ``m`` the quadratic needs beyond the plane's: the sums of
+    ``dx^3, dx^2 dy, dx dy^2, dy^3, dx^4, dx^3 dy, dx^2 dy^2, dx dy^3, dy^4, dx^2 dt, dx dy dt, dy^2 dt, dt^2``."""
+    xx = xq * xq
+    xy = xq * yq
+    yy = yq * yq
+    return (m[0] + xx * xq, m[1] + xx * yq, m[2] + xq * yy, m[3] + yy * yq, m[4] + xx * xx, m[5] + xx * xy,
+            m[6] + xx * yy, m[7] + xy * yy, m[8] + yy * yy, m[9] + xx * tq, m[10] + xy * tq, m[11] + yy * tq,
+            m[12] + tq * tq)
 
 
 @njit(cache=True, inline="always")

@@ -69,11 +69,16 @@ def test_ring_refit_strips_and_chunks_equal_one_shot(edge_events, random_events,
     ev, _ = _jittered_edge(edge_events, size, 0.08, rng=2)
     noise = random_events(1500, size.width, size.height, duration_us=int(ev["t"][-1]), rng=5)
     ev = np.sort(np.concatenate([ev, noise]), order="t", kind="stable")
-    p = noise_params(refine_window=9)
+    assert_strips_and_chunks_equal(ev, size, noise_params(refine_window=9), (n_tiles,))
+
+
+def assert_strips_and_chunks_equal(ev, size, p, tile_counts):
+    """``n_tiles`` strips (each count) and 7 chunks give the one-shot bytes (with estimates to compare)."""
     want = estimate_lifetimes(ev, size, p)
     assert want["valid"].sum() > 100
-    np.testing.assert_array_equal(estimate_lifetimes(ev, size, p, n_tiles=n_tiles).view(np.uint8),
-                                  want.view(np.uint8))
+    for n_tiles in tile_counts:
+        np.testing.assert_array_equal(estimate_lifetimes(ev, size, p, n_tiles=n_tiles).view(np.uint8),
+                                      want.view(np.uint8))
     est = IntraPixelLifetime(size, p)
     parts = [est.process(c) for c in np.array_split(ev, 7)]
     np.testing.assert_array_equal(np.concatenate(parts).view(np.uint8), want.view(np.uint8))
@@ -172,15 +177,7 @@ def test_curvature_keeps_a_plane_and_the_strips(edge_events, random_events):
     ev, _ = _jittered_edge(edge_events, size, 0.08, rng=2)
     noise = random_events(1500, size.width, size.height, duration_us=int(ev["t"][-1]), rng=5)
     ev = np.sort(np.concatenate([ev, noise]), order="t", kind="stable")
-    p = noise_params(curvature_f=4.0)
-    want = estimate_lifetimes(ev, size, p)
-    assert want["valid"].sum() > 100
-    for n_tiles in (2, 3):
-        np.testing.assert_array_equal(estimate_lifetimes(ev, size, p, n_tiles=n_tiles).view(np.uint8),
-                                      want.view(np.uint8))
-    est = IntraPixelLifetime(size, p)
-    parts = [est.process(c) for c in np.array_split(ev, 7)]
-    np.testing.assert_array_equal(np.concatenate(parts).view(np.uint8), want.view(np.uint8))
+    assert_strips_and_chunks_equal(ev, size, noise_params(curvature_f=4.0), (2, 3))
 
 
 @pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf")])
