@@ -820,11 +820,11 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
 
 
 #: Curvature (:func:`_refine`): the quadratic's normal equations, 6 x 7 augmented, flat in row ``_CA`` of ``wf``
-#: (:func:`_quad_fill`), its original right-hand side after them.
+#: (:func:`_quad_fill`).
 _QN = 6
 _QW = _QN + 1
-#: Least window cells of a scratch whose row ``_CA`` holds the quadratic's equations (``_QN * _QW + _QN`` values).
-QUAD_SCRATCH = _QN * _QW + _QN
+#: Least window cells of a scratch whose row ``_CA`` holds the quadratic's equations (``_QN * _QW`` values).
+QUAD_SCRATCH = _QN * _QW
 
 
 #: No point yet: :func:`_moments_add`'s thirteen sums.
@@ -860,43 +860,44 @@ def _quad_fill(wf, s1, sx, sy, sxx, sxy, syy, s30, s21, s12, s03, s40, s31, s22,
 
 @njit(cache=True)
 def _quad_solve(wf, intercept, stt):
-    """Solve the normal equations :func:`_quad_fill` wrote (Gaussian elimination, partial pivoting, in place).
+    """Solve the normal equations :func:`_quad_fill` wrote (symmetric: ``L D L^T``, in place).
 
     Without ``intercept`` the basis is ``dx, dy, dx^2, dx dy, dy^2`` (through the current
     event). Returns ``(solved, a, b, rss)``: the slopes at the current event and the
-    residual sum of squares ``stt - beta . rhs``; ``solved`` is False when a pivot is
-    not above ``1e-9`` of the largest diagonal term (the points fix no quadratic).
+    residual sum of squares ``stt - beta . rhs``; ``solved`` is False when a pivot
+    ``D[j]`` is not above ``1e-9`` of the largest diagonal term (the points fix no
+    quadratic). ``L`` (unit, below the diagonal) and ``D`` (on it) overwrite the
+    matrix; the solution overwrites the right-hand side (column ``_QN``).
     """
     q0 = 0 if intercept else 1
-    rhs = _QN * _QW  # the original right-hand side, kept for the residual sum
     scale = 0.0
     for i in range(q0, _QN):
-        wf[_CA, rhs + i] = wf[_CA, i * _QW + _QN]
-        scale = max(scale, abs(wf[_CA, i * _QW + i]))
-    for c in range(q0, _QN):
-        piv = c
-        for r in range(c + 1, _QN):
-            if abs(wf[_CA, r * _QW + c]) > abs(wf[_CA, piv * _QW + c]):
-                piv = r
-        if not abs(wf[_CA, piv * _QW + c]) > 1e-9 * scale:
+        scale = max(scale, wf[_CA, i * _QW + i])
+    for j in range(q0, _QN):
+        d = wf[_CA, j * _QW + j]
+        for k in range(q0, j):
+            lk = wf[_CA, j * _QW + k]
+            d -= lk * lk * wf[_CA, k * _QW + k]
+        if not d > 1e-9 * scale:
             return False, np.nan, np.nan, np.nan
-        if piv != c:
-            for j in range(q0, _QW):
-                v = wf[_CA, c * _QW + j]
-                wf[_CA, c * _QW + j] = wf[_CA, piv * _QW + j]
-                wf[_CA, piv * _QW + j] = v
-        for r in range(c + 1, _QN):
-            f = wf[_CA, r * _QW + c] / wf[_CA, c * _QW + c]
-            for j in range(c, _QW):
-                wf[_CA, r * _QW + j] -= f * wf[_CA, c * _QW + j]
-    for c in range(_QN - 1, q0 - 1, -1):  # back substitution: the solution in column _QN
-        v = wf[_CA, c * _QW + _QN]
-        for j in range(c + 1, _QN):
-            v -= wf[_CA, c * _QW + j] * wf[_CA, j * _QW + _QN]
-        wf[_CA, c * _QW + _QN] = v / wf[_CA, c * _QW + c]
+        wf[_CA, j * _QW + j] = d
+        for i in range(j + 1, _QN):
+            v = wf[_CA, i * _QW + j]
+            for k in range(q0, j):
+                v -= wf[_CA, i * _QW + k] * wf[_CA, j * _QW + k] * wf[_CA, k * _QW + k]
+            wf[_CA, i * _QW + j] = v / d
     rss = stt
-    for i in range(q0, _QN):
-        rss -= wf[_CA, i * _QW + _QN] * wf[_CA, rhs + i]
+    for i in range(q0, _QN):  # L z = rhs; beta^T rhs = sum z_i^2 / D_i, the residual sum's decrease
+        v = wf[_CA, i * _QW + _QN]
+        for k in range(q0, i):
+            v -= wf[_CA, i * _QW + k] * wf[_CA, k * _QW + _QN]
+        wf[_CA, i * _QW + _QN] = v
+        rss -= v * v / wf[_CA, i * _QW + i]
+    for i in range(_QN - 1, q0 - 1, -1):  # D L^T beta = z
+        v = wf[_CA, i * _QW + _QN] / wf[_CA, i * _QW + i]
+        for k in range(i + 1, _QN):
+            v -= wf[_CA, k * _QW + i] * wf[_CA, k * _QW + _QN]
+        wf[_CA, i * _QW + _QN] = v
     return True, wf[_CA, 1 * _QW + _QN], wf[_CA, 2 * _QW + _QN], rss
 
 

@@ -419,7 +419,7 @@ their centroid, behind the event; where the edge's normal speed changes across t
 a median 5.4 degrees and the error followed the angle between motion and normal (-10.6 % at cosine
 0.6-0.8, +4.7 % at 0.9-0.97). The ring refit now also fits ``dt = a dx + b dy + c dx^2 + d dx dy + e
 dy^2`` (``+ t0`` with ``refit_intercept``) on the same points (the moments are summed with the plane's,
-the 6 x 6 normal equations solved in the scratch, :func:`._intra_kernels._quad_solve`) and takes its
+the 6 x 6 normal equations solved by ``L D L^T`` in the scratch, :func:`._intra_kernels._quad_solve`) and takes its
 slopes at the event when ``F = ((RSS_plane - RSS_quad) / 3) / (RSS_quad / dof) > curvature_f``. That
 cell: lag 1.1 degrees, median |error| 6.7 -> 3.1 %. Full grid (``benchmarks/robustness_grid.py --preset
 P --buffer-preset line --workers 2 [--intra curvature_f=F]``, 2026-12-07 20:2x-20:4x UTC, load ~2), goal
@@ -427,8 +427,9 @@ cells median error / > 2x / signal / noise: ``noise_params()`` 193 / 182 / 93 / 
 99 (F = 4) and 197 / 184 / 91 / 99 (F = 16); ``robust_params()`` 184 / 155 / 98 / 87 -> 188 / 153 / 97 /
 87 (16); cells above half Mueggler's median 23 -> 18 and 24 -> 19. Costs: coverage in the rotation cells
 0.5-2 points lower (the start-up rule: ``benchmarks/cell_breakdown.py --kind rotation --r 5``), the
-presets' estimator CPU +28 / +23 / +7 % per event on the rotation cell / shapes_translation /
-``stripes.mat`` (whose estimates and medians are unchanged). A test checks the exact gradient on
+presets' estimator CPU +20 / +17 / +5 % per event on the rotation cell / shapes_translation /
+``stripes.mat`` (whose estimates and medians are unchanged; with Gaussian elimination instead of
+``L D L^T`` +28 / +23 / +7 %, the same decisions; scratch script alternating the settings, best of 5). A test checks the exact gradient on
 a front with integer timestamps on a quadratic, where the plane is 0.8 % off.
 
 Presets, 2026-12-07: ``startup_reach = 1.5`` (was 1) and ``burst_reuse = 2`` (was 0) joined
