@@ -151,9 +151,9 @@ def test_curvature_gives_the_slopes_at_the_event():
     the event; the quadratic gives them at the event: the known gradient."""
     size = SensorSize(30, 24)
     ev, truth = _curved_front(size)
-    base = IntraParams(refine_window=9, startup_reach=0.0, refit_intercept=False)
-    plane = estimate_lifetimes(ev, size, base)
-    quad = estimate_lifetimes(ev, size, replace(base, curvature_f=4.0))
+    p = robust_params(startup_reach=0.0, refit_intercept=False, curvature_f=4.0)  # the presets' kernel types
+    quad = estimate_lifetimes(ev, size, p)
+    plane = ref_stream(ev, size, replace(p, curvature_f=0.0))  # the reference: no new kernel variant
     inner = (ev["x"] >= 6) & (ev["x"] < size.width - 4) & (ev["y"] >= 4) & (ev["y"] < size.height - 4)
     v = inner & plane["valid"] & quad["valid"]
     assert v.sum() > 150
