@@ -134,21 +134,36 @@ def _record_columns_par(events):
     return cols
 
 
+@njit(cache=True, inline="always")
+def _lifetime_chunk(lifetimes, cols, valid, lo, hi):
+    """Lifetimes ``[lo, hi)``'s lifetime, vx, vy into ``cols[:, lo:hi]`` and valid into ``valid[lo:hi]``."""
+    for k in range(lo, hi):
+        o = lifetimes[k]
+        cols[0, k] = o.lifetime_us
+        cols[1, k] = o.vx_px_s
+        cols[2, k] = o.vy_px_s
+        valid[k] = o.valid
+
+
+@njit(cache=True)
+def _lifetime_columns(lifetimes):
+    """A LIFETIME_DTYPE array's lifetime, vx, vy as a (3, n) float64 array and valid as bool, in one pass."""
+    n = lifetimes.shape[0]
+    cols = np.empty((3, n))
+    valid = np.empty(n, np.bool_)
+    _lifetime_chunk(lifetimes, cols, valid, 0, n)
+    return cols, valid
+
+
 @njit(parallel=True, cache=True)
 def _lifetime_columns_par(lifetimes):
-    """A LIFETIME_DTYPE array's lifetime, vx, vy as a (3, n) float64 array and valid as bool, over chunks in
-    parallel."""
+    """:func:`_lifetime_columns` over chunks in parallel: the same arrays."""
     n = lifetimes.shape[0]
     cols = np.empty((3, n))
     valid = np.empty(n, np.bool_)
     for c in prange(n_chunks(n)):
         lo, hi = chunk_bounds(c, n)
-        for k in range(lo, hi):
-            o = lifetimes[k]
-            cols[0, k] = o.lifetime_us
-            cols[1, k] = o.vx_px_s
-            cols[2, k] = o.vy_px_s
-            valid[k] = o.valid
+        _lifetime_chunk(lifetimes, cols, valid, lo, hi)
     return cols, valid
 
 

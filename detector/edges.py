@@ -38,7 +38,7 @@ import numpy as np
 from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
                       columns)
 from ._edges_kernels import _DX, _DY, _edge_update
-from ._stream_kernels import _lifetime_columns_par, _record_columns_par
+from ._stream_kernels import _lifetime_columns, _lifetime_columns_par, _record_columns, _record_columns_par
 from ._tiles import check_n_tiles, edge_frames_tiled
 
 _INT64_MAX = np.iinfo(np.int64).max
@@ -224,10 +224,10 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     if not times.size:
         return out
     ends = np.searchsorted(events["t"], times[order], side="right")
-    # the checked events' and lifetimes' columns once, then slices of them (contiguous) per frame;
-    # each frame rendered into its own memory (the image_at comparisons, no temporaries)
-    cols = (*columns(events), *(np.ascontiguousarray(lifetimes[f]) for f in ("lifetime_us", "vx_px_s", "vy_px_s",
-                                                                            "valid")))
+    # the checked events' and lifetimes' columns once (one pass over each record array), then slices of them
+    # (contiguous) per frame; each frame rendered into its own memory (the image_at comparisons, no temporaries)
+    (lt, vx, vy), valid = _lifetime_columns(lifetimes)
+    cols = (*_record_columns(events), lt, vx, vy, valid)
     scratch = np.empty(sensor_size.width * sensor_size.height, dtype=bool)
     flat = out.reshape(times.size, -1)
     start = 0
