@@ -725,15 +725,17 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
     fit's plane (with the inliers' least-squares offset when ``intercept``, else
     through the current event), less the intra-pixel slack, is within the inlier
     threshold. Least squares on the inliers, the joined points and the current
-    event, as the fit's own refit; returns ``(a, b)`` unchanged when no ring point
-    joins or the refit is flat, singular or not finite.
+    event, as the fit's own refit. Returns ``(a, b, pa, pb)``: the slopes, and the
+    plane's (the same unless the quadratic below is taken); ``(a, b)`` unchanged when
+    no ring point joins or the refit is flat, singular or not finite.
 
     Curvature (``curv``, None = off, pruned when compiled): on the same points, the
     quadratic ``dt = a dx + b dy + c dx^2 + d dx dy + e dy^2`` (``+ t0`` with
     ``intercept``) too, by least squares (:func:`_quad_solve`); its slopes at the
     current event, ``(a, b)``, replace the plane's when the F statistic of the three
-    curvature terms exceeds ``curv`` (:func:`_prefers_quadratic`). Tried also when no
-    ring point joins.
+    curvature terms exceeds ``curv`` (:func:`_prefers_quadratic`); ``pa, pb`` are then
+    the plane's on the same points (the start-up rule judges the window's history
+    with it, as it was measured). Tried also when no ring point joins.
     """
     s1 = 1.0
     sx = 0.0
@@ -793,12 +795,12 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
             sxt += xq * tq
             syt += yq * tq
     if joined == 0 and curv is None:
-        return a, b
+        return a, b, a, b
     solved, a2, b2 = _ls_slopes(s1, sx, sy, st, sxx, sxy, syy, sxt, syt, intercept)
     if not solved:
-        return a, b
+        return a, b, a, b
     if not (a2 * a2 + b2 * b2 > 0.0) or not math.isfinite(a2) or not math.isfinite(b2):
-        return a, b
+        return a, b, a, b
     if curv is not None:
         # the quadratic's residual degrees of freedom: the current event is an observation with an
         # intercept; through it, it fixes nothing
@@ -813,10 +815,10 @@ def _refine(sae, wf, wi, n, base, xk, yk, tk, width, height, fh, half, oldest, a
             ok, qa, qb, rss_quad = _quad_solve(wf, intercept, stt)
             if ok and _prefers_quadratic(rss_plane, rss_quad, dof, curv):
                 if qa * qa + qb * qb > 0.0 and math.isfinite(qa) and math.isfinite(qb):
-                    return qa, qb
+                    return qa, qb, a2, b2
         if joined == 0:
-            return a, b
-    return a2, b2
+            return a, b, a, b
+    return a2, b2, a2, b2
 
 
 #: Curvature (:func:`_refine`): the quadratic's normal equations, 6 x 7 augmented, flat in row ``_CA`` of ``wf``
@@ -1117,6 +1119,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         warm = False  # burst reuse: the warm refit gave the estimate
         n_inl = 0  # burst reuse: the warm refit's inliers (current event included)
         gathered = False  # the window at the burst's first time is in wf, wi already
+        refined = False  # the ring refit ran: ra, rb are its plane's slopes (the start-up rule's)
+        ra = np.nan
+        rb = np.nan
         if use_fits and cont and not math.isnan(fits[fs]):
             tk = sae[si]  # the burst's first time, as a continuing event's fit
             if fits[fs + 2] >= reuse:
@@ -1133,8 +1138,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                 warm = ok
                 if refine is not None:
                     if ok:
-                        a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
-                                       ring_us, ring_rel, intercept, curv)
+                        a, b, ra, rb = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a,
+                                               b, delta, ring_us, ring_rel, intercept, curv)
+                        refined = True
         for attempt in range(0 if ok else 2):
             if cont or trial:
                 tk = sae[si]  # same burst: the pixel and the event keep the burst's first time
@@ -1155,8 +1161,9 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
                                    fallback, gap_ratio, on_plane, jump_check, noise, ls_first)
             if refine is not None:
                 if ok:
-                    a, b = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b, delta,
-                                   ring_us, ring_rel, intercept, curv)
+                    a, b, ra, rb = _refine(sae, wf, wi, n, base, xk, yk, tk, width, rows, fh, half, oldest, a, b,
+                                           delta, ring_us, ring_rel, intercept, curv)
+                    refined = True
             if not trial:
                 break
             trial = False
@@ -1193,7 +1200,7 @@ def _intra_stream(x, y, t, p, idx, j0, g0, sae, prev_t, prev_lt, prev_pol, burst
         # border rule: the fit still feeds the burst state below, but is not reported
         # start-up rule (t_start > _NEVER): likewise while the window's history is too short for the plane
         if ok and (xk < border or y[k] < border or xk >= width - border or y[k] >= height - border
-                   or _history_short(tk, a, b, reach_px, t_start)):
+                   or _history_short(tk, ra if refined else a, rb if refined else b, reach_px, t_start)):
             out_lt[j] = math.sqrt(a * a + b * b)
             out_vx[j] = np.nan
             out_vy[j] = np.nan

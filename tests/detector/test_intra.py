@@ -260,8 +260,8 @@ def ref_stream(events, size, p: IntraParams):
             ok, a, b, flags = ref_fit(pts, p, p.seed, g, p.delta_px, info)
             inliers[:] = [q for q, f in zip(cells, flags) if f]
             if ok and p.refine_window:
-                a, b = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f], a, b,
-                                      oldest)
+                a, b, *reach[:] = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f],
+                                                 a, b, oldest)
             return ok, a, b
 
         def warm_refit(t, a0, b0):
@@ -270,7 +270,8 @@ def ref_stream(events, size, p: IntraParams):
             ok, a, b, flags = ref_burst_refit(pts, a0, b0, p, p.delta_px)
             inliers[:] = [q for q, f in zip(cells, flags) if f]
             if ok and p.refine_window:
-                a, b = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f], a, b)
+                a, b, *reach[:] = ref_ring_refit(sae, plane, x, y, t, size, p, [q for q, f in zip(pts, flags) if f],
+                                                 a, b)
             return ok, a, b
 
         def stale_cutoff():
@@ -284,6 +285,7 @@ def ref_stream(events, size, p: IntraParams):
                 return None
             return t_ev - int(gap)
 
+        reach = []  # the ring refit's plane, when it ran (the start-up rule's slopes)
         fresh = not cont  # passage_gap: not a continuation by the rule (a trial may make it one)
         stored = fits.get(key) if p.burst_reuse and cont else None
         reused = stored is not None and counts[key] >= p.burst_reuse
@@ -323,7 +325,8 @@ def ref_stream(events, size, p: IntraParams):
         b_px = p.border_px
         inside = b_px <= x < size.width - b_px and b_px <= y < size.height - b_px
         t_fit = sae[key]  # the burst's first time (or the event's own)
-        if ok and p.startup_reach > 0 and t_fit - p.startup_reach * half * (abs(a) + abs(b)) < t_start:
+        ra, rb = reach if reach else (a, b)
+        if ok and p.startup_reach > 0 and t_fit - p.startup_reach * half * (abs(ra) + abs(rb)) < t_start:
             inside = False  # start-up rule: the plane reaches before the first event; reported as no estimate
         if ok and inside:
             g2 = a * a + b * b
@@ -368,7 +371,9 @@ def ref_burst_refit(points, a0, b0, p: IntraParams, delta):
 
 def ref_ring_refit(sae, plane, x, y, t, size, p: IntraParams, inl, a, b, oldest=None):
     """refine_window: least squares on the fit's inliers ``inl``, the current event and the ring's points
-    on the fit's plane (residual to it, with the inliers' mean offset, less the slack, within the threshold)."""
+    on the fit's plane (residual to it, with the inliers' mean offset, less the slack, within the threshold).
+    Returns ``(a, b, pa, pb)``: the slopes and the plane's (the start-up rule's; other than ``a, b`` only when
+    curvature_f takes the quadratic)."""
     half, ring = p.window_size // 2, p.refine_window // 2
     pts = [(0.0, 0.0, 0.0)] + list(inl)
     c = float(np.mean([q[2] - a * q[0] - b * q[1] for q in pts])) if p.refit_intercept else 0.0
@@ -386,23 +391,23 @@ def ref_ring_refit(sae, plane, x, y, t, size, p: IntraParams, inl, a, b, oldest=
                 if abs(d - (a * ox + b * oy + c)) - slack <= thr:
                     joined.append((float(ox), float(oy), d))
     if not joined and not p.curvature_f:
-        return a, b
+        return a, b, a, b
     raw = np.array(pts + joined)
     m = raw - raw.mean(axis=0) if p.refit_intercept else raw
     xy, dt = m[:, :2], m[:, 2]
     g = xy.T @ xy
     if not np.linalg.det(g) > 1e-9 * g[0, 0] * g[1, 1]:
-        return a, b
+        return a, b, a, b
     a2, b2 = np.linalg.solve(g, xy.T @ dt)
     if not (a2 * a2 + b2 * b2 > 0 and math.isfinite(a2) and math.isfinite(b2)):
-        return a, b
+        return a, b, a, b
     if p.curvature_f:
         quad = ref_quadratic(raw, a2, b2, p)
         if quad is not None:
-            return quad
+            return (*quad, a2, b2)
         if not joined:
-            return a, b
-    return a2, b2
+            return a, b, a, b
+    return a2, b2, a2, b2
 
 
 def ref_quadratic(pts, a, b, p: IntraParams):

@@ -163,6 +163,22 @@ def test_curvature_gives_the_slopes_at_the_event():
     assert np.max(err_quad) < 1e-9 and np.median(err_plane) > 5e-3, (np.max(err_quad), np.median(err_plane))
 
 
+def test_curvature_leaves_the_start_up_rule_to_the_plane():
+    """The start-up rule judges the window's history with the plane on the refit's points, as it was measured:
+    on a curved front (one event per pixel, no burst) the quadratic changes the lifetimes, not which events the
+    rule lets through."""
+    size = SensorSize(30, 24)
+    ev, _ = _curved_front(size, speed_px_s=200.0)
+    p = robust_params(curvature_f=4.0)
+    assert p.startup_reach > 0
+    quad = estimate_lifetimes(ev, size, p)
+    plane = ref_stream(ev, size, replace(p, curvature_f=0.0))  # the reference: no new kernel variant
+    np.testing.assert_array_equal(quad["valid"], plane["valid"])
+    assert 0.2 < quad["valid"].mean() < 0.9  # the rule refuses the first columns' events, not all
+    v = quad["valid"]
+    assert not np.allclose(quad["lifetime_us"][v], plane["lifetime_us"][v], rtol=1e-3)
+
+
 def test_curvature_keeps_a_plane_and_the_strips(edge_events, random_events):
     """A straight edge without jitter prefers no quadratic (the same slopes as without the option, to rounding);
     strips and chunks give the serial bytes with the option on."""
