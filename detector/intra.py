@@ -399,7 +399,13 @@ first-0.1 s error over the noisy cells 5.9 / 7.2 / 8.7 % (the ring reaches pixel
 history is the start's), slow high-contrast stripes (20 degrees, 10 px/s, r = 3) 1.9 /
 2.2 / 2.8 %, estimator CPU summed over the cells 27.1 / 31.3 / 34.6 s; the rotating star
 5.1-6.6 % for all three. The presets take 9 (11 gains little more and plane over 11 x
-11 px is a strong assumption on real scenes). On the real ``stripes.mat``
+11 px is a strong assumption on real scenes). Again with ``curvature_f = 16`` in the presets
+(2026-12-07 21:4x UTC, ``--intra refine_window=11``, with the line rule): ``noise_params()`` 197 /
+184 / 93 / 99 -> 199 / 185 / 93 / 99 goal cells, above half Mueggler's 18 -> 7 of 131, first-0.1 s
+error over the noisy cells 3.3 -> 4.2 %; ``robust_params()`` 188 / 155 / 98 / 87 -> 187 / 154 / 99 /
+86 (above half Mueggler's 19 -> 7); better at 1000-2000 px/s, low contrast (r = 1.3, 70 degrees,
+2000 px/s 4.6 -> 2.1 %), worse on slow stripes (0 degrees, 10 px/s, r = 3: 2.5 -> 4.2 %) and the
+rotating star (r = 5: 3.0 -> 4.0 %), intra CPU +13 %. Mixed: the presets keep 9. On the real ``stripes.mat``
 (``robust_params()``) estimated 71.1 -> 71.3 % of the kept events, medians 6.64 / 11.82
 -> 6.69 / 11.87 ms (model-free 6.6 / 11.6). The strips' halo is the ring's radius (the
 events read that far). ``refine_tolerance`` (default 1, the bytes of before) admits a ring
