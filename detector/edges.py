@@ -223,11 +223,11 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
         return out
     if not times.size:
         return out
-    ends = np.searchsorted(events["t"], times[order], side="right")
     # the checked events' and lifetimes' columns once (one pass over each record array), then slices of them
     # (contiguous) per frame; each frame rendered into its own memory (the image_at comparisons, no temporaries)
     (lt, vx, vy), valid = _lifetime_columns(lifetimes)
     cols = (*_record_columns(events), lt, vx, vy, valid)
+    ends = np.searchsorted(cols[2], times[order], side="right")  # the contiguous time column, not the field
     scratch = np.empty(sensor_size.width * sensor_size.height, dtype=bool)
     flat = out.reshape(times.size, -1)
     start = 0
