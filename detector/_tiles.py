@@ -73,6 +73,7 @@ from ._buffer_kernels import (_buffer_scan, _line_scan, _two_passes, narrow_stat
 from ._edges_kernels import _DX, _DY, _edge_update
 from ._intra_kernels import _FIT_STRIDE, _intra_stream, _scratch
 from ._noise_kernels import _AGREE, _BURST_SPAN
+from ._workspace import WORKSPACE
 
 
 def check_n_tiles(n_tiles, height: int) -> int:
@@ -206,24 +207,29 @@ def filter_tiled(x, y, t, p, width: int, height: int, tau_us: int, causal: bool,
 
 @njit(parallel=True, cache=True)
 def _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, rows, own_lo, own_hi, width, clear_behind,
-                invalid_clears, burst, times, order, out):
+                invalid_clears, burst, times, order, out, soff, last_ts, expiries, start_ts, prev_lts, prev_pols):
     """Edge frames of every strip (one per ``prange`` iteration) at the sorted instants ``times``.
 
     A strip replays the events of its rows and of one row on each side
     (:func:`~evedge.detector._edges_kernels._edge_update`, read through its index
-    into the shared columns, on its own state) and writes its owned rows of frame
+    into the shared columns, on its own state: cells ``soff[s]:soff[s + 1]`` of
+    the five state arrays, set here) and writes its owned rows of frame
     ``order[i]`` at ``times[i]``.
     """
     for s in prange(lo.shape[0]):
         sel = idx[starts[s]:starts[s + 1]]
         n = sel.shape[0]
         row0 = lo[s]
-        cells = rows[s] * width
-        last_t = np.full(cells, NEVER_US, np.int64)
-        expiry = np.full(cells, -np.inf)
-        start_t = np.full(cells, NEVER_US, np.int64)
-        prev_lt = np.full(cells, np.nan)
-        prev_pol = np.full(cells, -1, np.int8)
+        last_t = last_ts[soff[s]:soff[s + 1]]
+        expiry = expiries[soff[s]:soff[s + 1]]
+        start_t = start_ts[soff[s]:soff[s + 1]]
+        prev_lt = prev_lts[soff[s]:soff[s + 1]]
+        prev_pol = prev_pols[soff[s]:soff[s + 1]]
+        last_t[:] = NEVER_US
+        expiry[:] = -np.inf
+        start_t[:] = NEVER_US
+        prev_lt[:] = np.nan
+        prev_pol[:] = -1
         a = 0
         r0 = own_lo[s] - row0
         r1 = own_hi[s] - row0
@@ -258,8 +264,12 @@ def edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, width: int, height: int, cl
     events (:func:`balanced_strips`).
     """
     own, lo, hi, idx, starts, _ = strip_layout(y, height, n_tiles, 1)
-    _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(), width,
-                clear_behind, invalid_clears, burst, times, order, out)
+    soff = np.zeros(n_tiles + 1, np.int64)
+    soff[1:] = np.cumsum((hi - lo) * width)
+    with WORKSPACE.scope() as take:  # the strips' state, kept mapped between calls (:mod:`._workspace`)
+        state = [take.empty(soff[-1], d) for d in (np.int64, np.float64, np.int64, np.float64, np.int8)]
+        _edge_tiles(x, y, t, lt, vx, vy, valid, p, idx, starts, lo, hi - lo, own[:, 0].copy(), own[:, 1].copy(),
+                    width, clear_behind, invalid_clears, burst, times, order, out, soff, *state)
 
 
 # ---------------------------------------------------------------- intra-pixel estimator
@@ -694,26 +704,30 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     reuse = fits is not None and fits.size > 0
     if reuse:
         state = (*state, fits.reshape(planes, height, _FIT_STRIDE * width))
-    local = [np.empty(off[-1] * (g.shape[2] // width), g.dtype) for g in state]
-    for g, l in zip(state, local):
-        _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
-    if not reuse:
-        local.append(np.empty(0))
-    dec = np.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
     par = np.zeros(height, np.int64)
     for s in range(n_tiles):
         par[own_lo[s]:own_hi[s]] = s % 2
-    # outputs per slot (each strip writes its own memory), then put in place
-    slot_outs = [np.empty(idx.size, o.dtype) for o in outs]
     threads = min(n_tiles, numba.get_num_threads())
     if stats is None:
         stats = np.zeros((n_tiles, 4), np.int64)
     if work is None:
         work = np.zeros((threads, 3), np.int64)
-    _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0, idx,
-                    starts, off, *local, np.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
-                    np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
-                    np.empty((2, x.shape[0])), width, height, tuple(kernel_args), *slot_outs, stats, work, par)
-    _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
-    for g, l in zip(state, local):
-        _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
+    # the large scratch (the strips' state, the per-event slots) is lent by the workspace: kept mapped
+    # between calls (:mod:`._workspace`); none of it outlives this block
+    with WORKSPACE.scope() as take:
+        local = [take.empty(off[-1] * (g.shape[2] // width), g.dtype) for g in state]
+        for g, l in zip(state, local):
+            _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
+        if not reuse:
+            local.append(np.empty(0))
+        dec = take.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
+        # outputs per slot (each strip writes its own memory), then put in place
+        slot_outs = [take.empty(idx.size, o.dtype) for o in outs]
+        _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0,
+                        idx, starts, off, *local, take.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
+                        np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
+                        take.empty((2, x.shape[0]), np.float64), width, height, tuple(kernel_args), *slot_outs,
+                        stats, work, par)
+        _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
+        for g, l in zip(state, local):
+            _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
