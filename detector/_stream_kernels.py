@@ -180,6 +180,12 @@ def _kept_columns(events, kept):
 
 
 @njit(cache=True)
+def _kept_columns_into(events, kept, cols):
+    """:func:`_kept_columns` written into ``cols`` ((4, m) int64, m the count of kept events)."""
+    _kept_chunk(events, kept, cols, 0, kept.shape[0], 0)
+
+
+@njit(cache=True)
 def _expand_lifetimes(kept, lt, vx, vy, valid, out):
     """``out`` (LIFETIME_DTYPE, aligned with all events): the kept events' columns, no estimate elsewhere."""
     _expand_chunk(kept, lt, vx, vy, valid, out, 0, kept.shape[0], 0)
@@ -221,10 +227,16 @@ def _kept_offsets(kept):
 def _kept_columns_par(events, kept, off):
     """:func:`_kept_columns` over chunks in parallel (``off`` from :func:`_kept_offsets`): the same array."""
     cols = np.empty((4, off[-1]), np.int64)
+    _kept_columns_par_into(events, kept, off, cols)
+    return cols
+
+
+@njit(parallel=True, cache=True)
+def _kept_columns_par_into(events, kept, off, cols):
+    """:func:`_kept_columns_par` written into ``cols`` ((4, off[-1]) int64)."""
     for c in prange(off.shape[0] - 1):
         lo, hi = chunk_bounds(c, kept.shape[0])
         _kept_chunk(events, kept, cols, lo, hi, off[c])
-    return cols
 
 
 @njit(parallel=True, cache=True)
