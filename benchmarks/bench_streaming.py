@@ -45,8 +45,12 @@ beside this tree's in the same process (its files in a temporary package,
 the same load), one line each; ``--only`` picks inputs; ``--intra key=value``
 sets IntraParams fields for both (e.g. ``burst_reuse=true``).
 
+``--tiles N`` runs the estimator on N row strips (numba threads; the strips keep their state between
+chunks): the CPU figures then count every thread (``time.process_time``), the wall latencies are the ones to
+compare with one core's.
+
 Run: ``.venv/bin/python benchmarks/bench_streaming.py [--copies 9] [--chunk-us 1000] [--passes 3]
-[--target-ns 286] [--intra burst_reuse=true ...] [--base REV] [--only recorded 2M copies tiled]``
+[--target-ns 286] [--intra burst_reuse=true ...] [--base REV] [--only recorded 2M copies tiled] [--tiles 2]``
 (``--intra``: IntraParams fields, as in ``robustness_grid.py``, module ``_intra_options``).
 
 Measured 2026-12-03 09:22-09:29 UTC, ``--base 2a1c4b7 --passes 5`` then the same with
@@ -159,6 +163,20 @@ def compressed(events: np.ndarray, factor: float) -> np.ndarray:
     return fast
 
 
+#: Row strips of the estimator (``--tiles``): with more than one the CPU clock is the process's (all threads).
+TILES = 1
+
+
+def _cpu() -> float:
+    """CPU seconds: the calling thread's (one core), or the process's with strips (their threads too)."""
+    return time.thread_time() if TILES == 1 else time.process_time()
+
+
+def _detector(impl, size: SensorSize, params):
+    """A streaming ``Detector`` of ``impl`` (on ``TILES`` strips when more than one)."""
+    return impl.Detector(size, params=params) if TILES == 1 else impl.Detector(size, params=params, n_tiles=TILES)
+
+
 def stream(events: np.ndarray, size: SensorSize, chunk_us: int, params=None, impl=None):
     """Per-chunk latencies (wall, CPU) in seconds and the event counts, after the warm-up; total CPU; released chunks.
 
@@ -166,18 +184,18 @@ def stream(events: np.ndarray, size: SensorSize, chunk_us: int, params=None, imp
     filter releases what it has decided by the chunk's end: ``process`` then
     ``advance_to`` in one pass through the estimator and the edge image).
     """
-    det = (impl or _THIS).Detector(size, params=params)
+    det = _detector(impl or _THIS, size, params)
     t = events["t"]
     t0 = int(t[0])
     edges = np.arange(t0, int(t[-1]) + chunk_us, chunk_us)
     cuts = np.searchsorted(t, edges)
     wall, cpu, counts, released = [], [], [], []
-    c_all = time.thread_time()
+    c_all = _cpu()
     for i in range(len(edges) - 1):
         chunk = events[cuts[i]:cuts[i + 1]]
-        w0, c0 = time.perf_counter(), time.thread_time()
+        w0, c0 = time.perf_counter(), _cpu()
         out = det.process(chunk, until_us=int(edges[i + 1]))
-        w1, c1 = time.perf_counter(), time.thread_time()
+        w1, c1 = time.perf_counter(), _cpu()
         if out[0].size:
             released.append(out[0])
         if i >= WARMUP_CHUNKS:
@@ -185,7 +203,7 @@ def stream(events: np.ndarray, size: SensorSize, chunk_us: int, params=None, imp
             cpu.append(c1 - c0)
             counts.append(chunk.size)
     out = det.flush()
-    c_all = time.thread_time() - c_all
+    c_all = _cpu() - c_all
     if out[0].size:
         released.append(out[0])
     return np.array(wall), np.array(cpu), np.array(counts), c_all, released
@@ -194,11 +212,11 @@ def stream(events: np.ndarray, size: SensorSize, chunk_us: int, params=None, imp
 def one_shot_cpu(events: np.ndarray, size: SensorSize, params=None, impl=None) -> float:
     """CPU seconds of the same work in one call per stage: buffer + estimator (``detect``) + the edge image."""
     impl = impl or _THIS
-    c0 = time.thread_time()
-    res = impl.detect(events, size, params=params)
+    c0 = _cpu()
+    res = impl.detect(events, size, params=params, n_tiles=TILES) if TILES > 1 else impl.detect(events, size, params=params)
     image = impl.EdgeImage(size)
     image.process(events[res.kept], res.lifetimes[res.kept])
-    return time.thread_time() - c0
+    return _cpu() - c0
 
 
 def estimator_cpu(released, size: SensorSize, params=None, impl=None) -> float:
@@ -208,12 +226,12 @@ def estimator_cpu(released, size: SensorSize, params=None, impl=None) -> float:
     any pipeline around today's estimator (the rest of the streamed CPU is the
     buffer, the edge image and the glue).
     """
-    est = (impl or _THIS).Detector(size, params=params).estimator
+    est = _detector(impl or _THIS, size, params).estimator
     cpu = 0.0
     for chunk in released:
-        c0 = time.thread_time()
+        c0 = _cpu()
         est.process(chunk)
-        cpu += time.thread_time() - c0
+        cpu += _cpu() - c0
     return cpu
 
 
@@ -224,13 +242,13 @@ def fixed_cost(events: np.ndarray, size: SensorSize, n: int = 3000, params=None,
     ``until_us`` just after it: the checks, allocations and one call per stage
     that every chunk pays, plus one event's work.
     """
-    det = (impl or _THIS).Detector(size, params=params)
+    det = _detector(impl or _THIS, size, params)
     cpu = []
     for i in range(min(n + 500, events.size)):
         t = int(events["t"][i])
-        c0 = time.thread_time()
+        c0 = _cpu()
         det.process(events[i:i + 1], until_us=t)
-        c1 = time.thread_time()
+        c1 = _cpu()
         if i >= 500:
             cpu.append(c1 - c0)
     return float(np.median(cpu))
@@ -318,7 +336,11 @@ def main(argv=None):
     ap.add_argument("--base", metavar="REV",
                     help="also the detector/ of git revision REV, alternated with this tree's in each pass")
     ap.add_argument("--only", nargs="*", choices=INPUTS, default=list(INPUTS), help="the inputs to run (default: all)")
+    ap.add_argument("--tiles", type=int, default=1,
+                    help="row strips of the estimator on numba's threads (CPU figures then count every thread)")
     args = ap.parse_args(argv)
+    global TILES
+    TILES = args.tiles
     params = _parse_intra(args.intra)
     changed = {k: v for k, v in dataclasses.asdict(params).items() if v != getattr(IntraParams(), k)}
     impls = [("", _THIS)]
@@ -331,7 +353,8 @@ def main(argv=None):
         return
     events, size = data
     assert events.dtype == EVENT_DTYPE
-    print(f"chunks of {args.chunk_us} us, one core, first {WARMUP_CHUNKS} chunks not counted, "
+    cores = "one core" if TILES == 1 else f"the estimator on {TILES} strips (CPU: all threads)"
+    print(f"chunks of {args.chunk_us} us, {cores}, first {WARMUP_CHUNKS} chunks not counted, "
           f"intra params: {changed or 'defaults'}")
     span_s = (int(events["t"][-1]) - int(events["t"][0])) / 1e6
     factor = 2e6 / (events.size / span_s)  # the issue's target rate: 2 M events/s on one core

@@ -114,15 +114,17 @@ def _balanced(counts: np.ndarray, height: int, n_tiles: int) -> np.ndarray:
     return np.stack([edges[:-1], edges[1:]], axis=1)
 
 
-def strip_layout(y: np.ndarray, height: int, n_tiles: int, halo: int):
-    """The strips of the events with rows ``y``: their owned rows (:func:`balanced_strips`), with ``halo`` rows on
-    each side, and their events (:func:`_strip_index`), from one pass of row counts per chunk of events.
+def strip_layout(y: np.ndarray, height: int, n_tiles: int, halo: int, own: np.ndarray | None = None):
+    """The strips of the events with rows ``y``: their owned rows (:func:`balanced_strips`, or ``own`` when
+    given), with ``halo`` rows on each side, and their events (:func:`_strip_index`), from one pass of row counts
+    per chunk of events.
 
     Returns ``(own, lo, hi, idx, starts, off)``: ``own`` ``(n_tiles, 2)``, the rows
     ``[lo, hi)`` each strip holds, and :func:`_strip_index`'s three arrays.
     """
     part = _chunk_rows(y, height)
-    own = _balanced(part.sum(axis=0), height, n_tiles)
+    if own is None:
+        own = _balanced(part.sum(axis=0), height, n_tiles)
     lo = np.maximum(own[:, 0] - halo, 0)
     hi = np.minimum(own[:, 1] + halo, height)
     idx, starts, off = _strip_index(y, lo, hi, part)
@@ -671,8 +673,52 @@ def _strips_to_state(g, local, lo, hi, own_lo, own_hi, off):
         g[:, own_lo[s]:own_hi[s], :] = src[:, own_lo[s] - lo[s]:own_hi[s] - lo[s], :]
 
 
+@njit(cache=True)
+def _halos_from_owners(local, lo, hi, own_lo, own_hi, off, planes, rowlen):
+    """Each strip's halo rows in ``local`` (laid out as :func:`_state_to_strips` does) from the strip owning them."""
+    for s in range(lo.shape[0]):
+        dst = local[off[s]:off[s + 1]].reshape(planes, hi[s] - lo[s], rowlen)
+        for r in range(lo[s], hi[s]):
+            if own_lo[s] <= r < own_hi[s]:
+                continue
+            o = 0
+            while not (own_lo[o] <= r < own_hi[o]):
+                o += 1
+            src = local[off[o]:off[o + 1]].reshape(planes, hi[o] - lo[o], rowlen)
+            dst[:, r - lo[s], :] = src[:, r - lo[o], :]
+
+
+class StripStates:
+    """The strips' own state, kept between the calls of a stream (:class:`~evedge.detector.intra.IntraPixelLifetime`).
+
+    Without it, every call of :func:`intra_tiled` copies the whole state into the
+    strips and their owned rows back: O(sensor) per call, which on a 1280 x 720
+    sensor and 1 ms chunks costs more than the events. With it, the first call
+    fixes the cut (any cut gives the same bytes) and loads the strips; a later
+    call only refreshes each strip's halo rows from the strips owning them (what
+    the full copy would have put there), and the caller's state arrays are
+    brought up to date by :meth:`store` when someone reads them.
+    """
+
+    def __init__(self) -> None:
+        self.own: np.ndarray | None = None  # the fixed cut, after the first call
+        self.local: list[np.ndarray] | None = None
+        self._layout = None  # (lo, hi, own_lo, own_hi, off) of the first call
+        self.stale = False  # the caller's arrays lack the strips' latest owned rows
+
+    def store(self, state) -> None:
+        """The strips' owned rows into ``state`` (the arrays :func:`intra_tiled` was given, fits last)."""
+        if self.stale:
+            lo, hi, own_lo, own_hi, off = self._layout
+            width = state[0].shape[2]
+            for g, l in zip(state, self.local):
+                _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
+            self.stale = False
+
+
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
-                stats: np.ndarray | None = None, work: np.ndarray | None = None, fits: np.ndarray | None = None):
+                stats: np.ndarray | None = None, work: np.ndarray | None = None, fits: np.ndarray | None = None,
+                strips: StripStates | None = None):
     """The intra-pixel estimator over ``n_tiles`` strips; the serial result (module notes).
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
@@ -688,10 +734,13 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
     ``fits`` (burst reuse, :func:`_intra_stream`; flat, ``_FIT_STRIDE`` per SAE cell; None or empty: off) is
     updated in place as ``state``; only owned pixels read or write it (halo events are not fitted).
+    ``strips`` (a stream's :class:`StripStates`): the strips keep their state between calls; ``state`` and
+    ``fits`` are read on the first call only and written by :meth:`StripStates.store`.
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
-    own, lo, hi, idx, starts, chunk_off = strip_layout(y, height, n_tiles, half)
+    own, lo, hi, idx, starts, chunk_off = strip_layout(y, height, n_tiles, half,
+                                                       None if strips is None else strips.own)
     own_lo = own[:, 0].copy()
     own_hi = own[:, 1].copy()
     rows = hi - lo
@@ -715,9 +764,21 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     # the large scratch (the strips' state, the per-event slots) is lent by the workspace: kept mapped
     # between calls (:mod:`._workspace`); none of it outlives this block
     with WORKSPACE.scope() as take:
-        local = [take.empty(off[-1] * (g.shape[2] // width), g.dtype) for g in state]
-        for g, l in zip(state, local):
-            _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
+        first = strips is None or strips.local is None
+        if strips is None:
+            local = [take.empty(off[-1] * (g.shape[2] // width), g.dtype) for g in state]
+        elif first:  # a stream's first call: its strips' own state from now on
+            local = [WORKSPACE.lease(off[-1] * (g.shape[2] // width), g.dtype, strips) for g in state]
+            strips.own, strips.local, strips._layout = own, local, (lo, hi, own_lo, own_hi, off)
+        else:
+            local = strips.local
+        if first:
+            for g, l in zip(state, local):
+                _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
+        else:
+            for g, l in zip(state, local):
+                _halos_from_owners(l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width), planes, g.shape[2])
+        local = list(local)
         if not reuse:
             local.append(np.empty(0))
         dec = take.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
@@ -729,5 +790,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
                         take.empty((2, x.shape[0]), np.float64), width, height, tuple(kernel_args), *slot_outs,
                         stats, work, par)
         _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
-        for g, l in zip(state, local):
-            _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
+        if strips is None:
+            for g, l in zip(state, local):
+                _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
+        else:
+            strips.stale = True

@@ -12,9 +12,11 @@ each other (numbers: the README's speed section).
 :data:`WORKSPACE` keeps the blocks it lent, up to a bound, and lends them
 again: a scope (:meth:`Workspace.scope`) takes arrays and gives them all back
 when it ends. Arrays are views of cached byte buffers: their contents are
-whatever the last user left (:meth:`Workspace.zeros` clears them), and no array
+whatever the last user left (:meth:`_Scope.zeros` clears them), and no array
 taken in a scope may outlive it (the next scope may write to it), so the
-scratch never reaches a caller. Small requests (below ``min_bytes``) are plain
+scratch never reaches a caller. :meth:`Workspace.lease` lends for as long as an
+owner object lives (a stream's strips' state: a one-shot call's estimator dies
+with the call, and its buffers serve the next call). Small requests (below ``min_bytes``) are plain
 ``numpy.empty``: the allocator keeps small blocks itself.
 
 Thread-safe: concurrent scopes take distinct buffers.
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import weakref
 
 import numpy as np
 
@@ -32,6 +35,13 @@ MIN_BYTES = 1 << 20
 
 #: Most bytes kept between calls; beyond it the largest unused buffers are dropped.
 MAX_CACHED_BYTES = 1 << 30
+
+
+def _request(shape, dtype):
+    """``(shape tuple, dtype, bytes)`` of a request."""
+    dtype = np.dtype(dtype)
+    shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(s) for s in shape)
+    return shape, dtype, int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
 
 
 class Workspace:
@@ -96,6 +106,19 @@ class Workspace:
             while self._free and total > self.max_cached_bytes:
                 total -= self._free.pop().size  # the largest first
 
+    def lease(self, shape, dtype, owner) -> np.ndarray:
+        """An array like :meth:`_Scope.empty`'s, lent until ``owner`` is garbage-collected (then cached again).
+
+        For scratch that lives as long as an object (a stream's strips' state):
+        a one-shot call's object dies with the call and its buffers serve the next.
+        """
+        shape, dtype, nbytes = _request(shape, dtype)
+        if nbytes < self.min_bytes:
+            return np.empty(shape, dtype)
+        buf = self._take(nbytes)
+        weakref.finalize(owner, self._give, [buf])
+        return buf[:nbytes].view(dtype).reshape(shape)
+
     @contextlib.contextmanager
     def scope(self):
         """A scope lending arrays (:class:`_Scope`); they return to the cache when it ends."""
@@ -116,9 +139,7 @@ class _Scope:
 
     def empty(self, shape, dtype) -> np.ndarray:
         """An array of ``shape`` and ``dtype`` with arbitrary contents (a cached buffer's view when large)."""
-        dtype = np.dtype(dtype)
-        shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(s) for s in shape)
-        nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        shape, dtype, nbytes = _request(shape, dtype)
         if nbytes < self._ws.min_bytes:
             return np.empty(shape, dtype)
         buf = self._ws._take(nbytes)

@@ -653,7 +653,7 @@ from ._intra_kernels import (_FIT_STRIDE, _NEVER, QUAD_SCRATCH, _fit_windows, _i
                              scratch_arrays)
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, N_NOISE
 from ._stream_kernels import _pack_lifetimes, _record_columns, _record_columns_par
-from ._tiles import check_n_tiles, intra_tiled
+from ._tiles import StripStates, check_n_tiles, intra_tiled
 from .fill import ARRIVAL, NeighbourFill, check_fill
 from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
@@ -1093,7 +1093,7 @@ class IntraPixelLifetime:
         self.sensor_size = check_sensor_size(sensor_size)
         self.params = _check_params(params)
         self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
-        self.sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
+        self._sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
         # the serial kernel's, reused by every chunk (the ring refit's quadratic needs a row of QUAD_SCRATCH)
         self._scratch = scratch_arrays(max(self.params.window_size**2, QUAD_SCRATCH if self.params.curvature_f else 0))
         pr = self.params  # the neighbour fill (off: None), run after the kernel on its output
@@ -1102,14 +1102,35 @@ class IntraPixelLifetime:
                                    border_px=pr.border_px) if pr.fill_neighbours else None
         self.reset()
 
+    @property
+    def sae(self) -> SurfaceOfActiveEvents:
+        """The surface of active events (with strips: brought up to date from the strips when read)."""
+        self._sync()
+        return self._sae
+
+    def _sync(self) -> None:
+        """The strips' state (kept between chunks, :class:`~evedge.detector._tiles.StripStates`) into the arrays."""
+        if self._strips is not None and self._strips.stale:
+            self._strips.store(self._state(self._sae.times_us))
+
+    def _state(self, sae):
+        """The state arrays as the strips take them: SAE, previous time, lifetime, polarity (and fits)."""
+        state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
+                 self._prev_pol.reshape(sae.shape))
+        if self._prev_fit.size:
+            state = (*state, self._prev_fit.reshape(sae.shape[0], sae.shape[1], -1))
+        return state
+
     def reset(self) -> None:
         """Clear the SAE, the burst state and the neighbour fill's; restart the event counter of the random stream."""
-        self.sae.reset()
-        self._prev_t = np.zeros(self.sae.times_us.size, dtype=np.int64)
-        self._prev_lt = np.full(self.sae.times_us.size, np.nan)
-        self._prev_pol = np.full(self.sae.times_us.size, -1, dtype=np.int8)
+        self._sae.reset()
+        # with strips, their own state between chunks (made by the first chunk, from the arrays below)
+        self._strips = StripStates() if self.n_tiles > 1 else None
+        self._prev_t = np.zeros(self._sae.times_us.size, dtype=np.int64)
+        self._prev_lt = np.full(self._sae.times_us.size, np.nan)
+        self._prev_pol = np.full(self._sae.times_us.size, -1, dtype=np.int8)
         # burst reuse: the plane (a, b) of each pixel's current burst (NaN = none) and its count of fits; empty = off
-        self._prev_fit = np.full(_FIT_STRIDE * self.sae.times_us.size if self.params.burst_reuse else 0, np.nan)
+        self._prev_fit = np.full(_FIT_STRIDE * self._sae.times_us.size if self.params.burst_reuse else 0, np.nan)
         self._prev_fit[2::_FIT_STRIDE] = 0.0
         self._n_seen = 0
         self._last_time: int | None = None
@@ -1164,7 +1185,7 @@ class IntraPixelLifetime:
                 pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers,  # burst reuse (then its plane array)
                 pr.refine_tolerance,  # the ring refit's threshold, after the plane array
                 off_as_none(pr.curvature_f))  # the ring refit's quadratic: off as None, not compiled
-        sae = self.sae.times_us
+        sae = self._sae.times_us
         if self.n_tiles == 1:
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
@@ -1175,12 +1196,12 @@ class IntraPixelLifetime:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
             intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid),
-                        fits=self._prev_fit)
+                        fits=self._prev_fit, strips=self._strips)
         if self._fill is not None:  # serial, after the strips: the same bytes for any n_tiles
             self._fill._apply(x, y, t, p, lt, vx, vy, valid)
         self._n_seen += n
         self._last_time = int(t[-1])
-        self.sae._last_time = self._last_time
+        self._sae._last_time = self._last_time
         return lt, vx, vy, valid
 
 

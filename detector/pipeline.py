@@ -344,6 +344,12 @@ class Detector:
         Any registered estimator (default ``"intra"``) or ``package.module:factory``.
     filter : str, optional
         Any registered noise filter (default ``"buffer"``).
+    n_tiles : int
+        Row strips of the estimator run in parallel (numba threads), for a method
+        registered with them (the built-in one; others run serially): the same
+        bytes for any value. The strips keep their state between chunks (only
+        their halo rows are refreshed per chunk), so a chunk costs no copy of the
+        sensor's state.
 
     Notes
     -----
@@ -369,8 +375,9 @@ class Detector:
 
     def __init__(self, sensor_size, buffer_params=None, params=None, use_buffer: bool | None = None,
                  clear_behind: bool = False, invalid: str = "ignore", *, method: str = "intra",
-                 filter: str | None = None, display: str | None = None) -> None:
+                 filter: str | None = None, display: str | None = None, n_tiles: int = 1) -> None:
         self.sensor_size = check_sensor_size(sensor_size)
+        n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
         self.method = method
         self.filter_name = _default_filter(method, use_buffer, filter)
         self.use_buffer = self.filter_name is not None
@@ -378,7 +385,7 @@ class Detector:
             if self.filter_name else None
         # the built-in buffer releases, in order, events it took as checked chunks: no check of its output
         self._own_buffer = type(self.buffer) is EventBuffer
-        self.estimator = make_method(method, self.sensor_size, params, kind="estimator")
+        self.estimator = make_method(method, self.sensor_size, _with_tiles(method, params, n_tiles), kind="estimator")
         self.edges = EdgeImage(self.sensor_size, clear_behind=clear_behind, invalid=invalid, display=display)
         # the built-in buffer and estimator: the released events' plain columns go from stage to stage
         # (no check, column copy or record packing between them; the same bytes)

@@ -46,12 +46,15 @@ def test_detect_when_the_buffer_keeps_nothing():
     assert empty.lifetimes.shape == (0,) and empty.kept.shape == (0,)
 
 
-def test_streaming_detector_equals_one_shot(edge_events, random_events):
+@pytest.mark.parametrize("n_tiles", [1, 3])
+def test_streaming_detector_equals_one_shot(edge_events, random_events, n_tiles):
+    """Chunked through the streaming detector (its estimator on 1 or 3 strips that keep their state) == detect."""
     size = SensorSize(24, 20)
     ev = _noisy_edges(edge_events, random_events)
     bp = BufferParams(tau_min_us=3_000)
     res = detect(ev, size, buffer_params=bp)
-    det = Detector(size, buffer_params=bp)
+    det = Detector(size, buffer_params=bp, n_tiles=n_tiles)
+    assert det.estimator.n_tiles == n_tiles
     outs = []
     for c in np.array_split(ev, 11):
         outs.append(det.process(c))

@@ -281,3 +281,28 @@ def test_tiny_inputs_on_strips_equal_serial():
             times = [0, 50_000, 10**5]
             assert (edge_frames(ev, one.lifetimes, size, times, n_tiles=n_tiles).tobytes()
                     == edge_frames(ev, one.lifetimes, size, times).tobytes())
+
+
+def test_streamed_strips_keep_their_state_and_show_it_when_read(sim_stripes):
+    """A stream's strips keep their state between chunks (only the halos are refreshed) and the estimator's
+    arrays are brought up to date when read: after every chunk the SAE and the burst state equal the serial
+    stream's, reading them changes nothing that follows, and a reset starts over (a new cut)."""
+    events, size = sim_stripes
+    sub = events[filter_events(events, size)][:30_000]
+    params = noise_params()
+    cuts = [0, 3, 8_000, 8_001, 19_000, 30_000]
+    serial = IntraPixelLifetime(size, params)
+    est = IntraPixelLifetime(size, params, n_tiles=3)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        assert est.process(sub[a:b]).tobytes() == serial.process(sub[a:b]).tobytes()
+        if b % 2:  # read after some chunks only: the next chunks must not depend on it
+            assert np.array_equal(est.sae.times_us, serial.sae.times_us)
+            for name in ("_prev_t", "_prev_lt", "_prev_pol", "_prev_fit"):
+                assert getattr(est, name).tobytes() == getattr(serial, name).tobytes(), name
+    assert est._strips.local is not None and est._strips.stale  # the last chunk's state not read yet
+    assert np.array_equal(est.sae.times_us, serial.sae.times_us) and not est._strips.stale
+    est.reset()
+    serial.reset()
+    assert est._strips.local is None and (est.sae.times_us == serial.sae.times_us).all()
+    again = IntraPixelLifetime(size, params)
+    assert est.process(sub[5_000:9_000]).tobytes() == again.process(sub[5_000:9_000]).tobytes()

@@ -135,3 +135,18 @@ def test_the_strips_leave_their_scratch_in_the_process_workspace():
     again = estimate_lifetimes(ev, (64, 64), n_tiles=2)  # on reused (dirty) buffers
     assert WORKSPACE.cached_bytes == kept  # the same buffers lent again, none added
     assert first.tobytes() == again.tobytes() == estimate_lifetimes(ev, (64, 64)).tobytes()
+
+
+def test_a_lease_returns_when_its_owner_is_collected():
+    ws = Workspace(min_bytes=0)
+
+    class Owner:
+        pass
+
+    owner = Owner()
+    a = ws.lease((8, 8), np.float64, owner)
+    assert a.shape == (8, 8) and ws.cached_bytes == 0
+    del owner  # (reference counting: collected here)
+    assert ws.cached_bytes == 512
+    with ws.scope() as take:
+        assert np.shares_memory(take.empty(64, np.float64), a)
