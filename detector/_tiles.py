@@ -705,6 +705,8 @@ class StripStates:
         self.local: list[np.ndarray] | None = None
         self._layout = None  # (lo, hi, own_lo, own_hi, off) of the first call
         self.stale = False  # the caller's arrays lack the strips' latest owned rows
+        self.qcnt: np.ndarray | None = None  # deferred events per cell and per row (zero between calls)
+        self.qrow: np.ndarray | None = None
 
     def store(self, state) -> None:
         """The strips' owned rows into ``state`` (the arrays :func:`intra_tiled` was given, fits last)."""
@@ -784,9 +786,19 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
         dec = take.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
         # outputs per slot (each strip writes its own memory), then put in place
         slot_outs = [take.empty(idx.size, o.dtype) for o in outs]
+        # the deferred events' counts per cell and row: zero before a call and, every queue drained, after it
+        # (a stream keeps them: no O(sensor) clearing per chunk)
+        if strips is None:
+            qcnt, qrow = take.zeros(off[-1], np.int32), np.zeros(roff[-1], np.int32)
+        else:
+            if first:
+                strips.qcnt = WORKSPACE.lease(off[-1], np.int32, strips)
+                strips.qcnt.fill(0)
+                strips.qrow = np.zeros(roff[-1], np.int32)
+            qcnt, qrow = strips.qcnt, strips.qrow
         _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0,
-                        idx, starts, off, *local, take.zeros(off[-1], np.int32), roff, np.zeros(roff[-1], np.int32),
-                        np.empty(qoff[-1], np.int64), qoff, lo, rows, own_lo, own_hi, dec,
+                        idx, starts, off, *local, qcnt, roff, qrow, np.empty(qoff[-1], np.int64), qoff, lo, rows,
+                        own_lo, own_hi, dec,
                         take.empty((2, x.shape[0]), np.float64), width, height, tuple(kernel_args), *slot_outs,
                         stats, work, par)
         _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
