@@ -17,6 +17,7 @@ Public API (loaded on first use, so ``import evedge.detector`` stays cheap):
 - :mod:`~evedge.detector.protocols`: ``METHODS`` (the method registry), ``LifetimeEstimator``,
   ``NoiseFilter``, ``EdgeDetector``
 - :mod:`~evedge.detector.result`: ``LIFETIME_DTYPE``, ``empty_lifetimes``
+- ``free_scratch``: release the scratch memory the parallel strips keep between calls
 - baselines: ``MuegglerParams``, ``MuegglerLifetime``, ``estimate_lifetimes_mueggler``
   (:mod:`~evedge.detector.mueggler`); ``accumulate_time``, ``accumulate_count``,
   ``TimeWindowAccumulator``, ``CountWindowAccumulator`` (:mod:`~evedge.detector.accumulate`)
@@ -54,6 +55,7 @@ _EXPORTS = {
     "EdgeDetector": "protocols",
     "LIFETIME_DTYPE": "result",
     "empty_lifetimes": "result",
+    "free_scratch": "_workspace",
     "MuegglerParams": "mueggler",
     "MuegglerLifetime": "mueggler",
     "estimate_lifetimes_mueggler": "mueggler",

@@ -155,3 +155,22 @@ class _Scope:
 
 #: The process's workspace (:mod:`evedge.detector._tiles`); ``WORKSPACE.clear()`` frees its memory.
 WORKSPACE = Workspace()
+
+
+def free_scratch() -> int:
+    """Release the detector's cached scratch memory (what the parallel strips keep mapped between calls).
+
+    Returns
+    -------
+    int
+        Bytes released (buffers still lent, e.g. to a live stream's strips, stay).
+
+    Examples
+    --------
+    >>> from evedge.detector import free_scratch
+    >>> free_scratch() >= 0
+    True
+    """
+    released = WORKSPACE.cached_bytes
+    WORKSPACE.clear()
+    return released

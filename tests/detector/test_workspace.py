@@ -135,6 +135,9 @@ def test_the_strips_leave_their_scratch_in_the_process_workspace():
     again = estimate_lifetimes(ev, (64, 64), n_tiles=2)  # on reused (dirty) buffers
     assert WORKSPACE.cached_bytes == kept  # the same buffers lent again, none added
     assert first.tobytes() == again.tobytes() == estimate_lifetimes(ev, (64, 64)).tobytes()
+    from evedge.detector import free_scratch
+
+    assert free_scratch() == kept and WORKSPACE.cached_bytes == 0
 
 
 def test_a_lease_returns_when_its_owner_is_collected():
@@ -150,3 +153,12 @@ def test_a_lease_returns_when_its_owner_is_collected():
     assert ws.cached_bytes == 512
     with ws.scope() as take:
         assert np.shares_memory(take.empty(64, np.float64), a)
+
+
+def test_the_module_examples_run():
+    import doctest
+
+    from evedge.detector import _workspace
+
+    result = doctest.testmod(_workspace)
+    assert result.attempted >= 5 and result.failed == 0
