@@ -1072,14 +1072,17 @@ class IntraPixelLifetime:
     params : IntraParams, optional
     n_tiles : int
         Row strips processed in parallel (numba threads; default 1, serial). Any
-        value gives the same bytes (:mod:`evedge.detector._tiles`).
+        value gives the same bytes (:mod:`evedge.detector._tiles`). The strips
+        keep their state between chunks (the first chunk fixes where they are
+        cut; a chunk then refreshes only their halo rows, not the whole sensor).
 
     Attributes
     ----------
     sae : SurfaceOfActiveEvents
         The surface the windows are read from. With ``burst_lifetimes > 0`` a
         pixel holds the time of the first event of its current burst, not of
-        its newest event (module notes).
+        its newest event (module notes). With strips it is brought up to date
+        from them when read.
 
     Notes
     -----
