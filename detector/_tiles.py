@@ -719,8 +719,8 @@ class StripStates:
 
 
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
-                stats: np.ndarray | None = None, work: np.ndarray | None = None, fits: np.ndarray | None = None,
-                strips: StripStates | None = None):
+                strips: StripStates, stats: np.ndarray | None = None, work: np.ndarray | None = None,
+                fits: np.ndarray | None = None):
     """The intra-pixel estimator over ``n_tiles`` strips; the serial result (module notes).
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
@@ -736,13 +736,12 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     and ``work`` (int64 ``(workers, 3)``), when given, receive :func:`_intra_parallel`'s counters.
     ``fits`` (burst reuse, :func:`_intra_stream`; flat, ``_FIT_STRIDE`` per SAE cell; None or empty: off) is
     updated in place as ``state``; only owned pixels read or write it (halo events are not fitted).
-    ``strips`` (a stream's :class:`StripStates`): the strips keep their state between calls; ``state`` and
-    ``fits`` are read on the first call only and written by :meth:`StripStates.store`.
+    ``strips`` (the stream's :class:`StripStates`) keeps the strips' state between calls: ``state`` and ``fits``
+    are read on its first call only and written by :meth:`StripStates.store`.
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
-    own, lo, hi, idx, starts, chunk_off = strip_layout(y, height, n_tiles, half,
-                                                       None if strips is None else strips.own)
+    own, lo, hi, idx, starts, chunk_off = strip_layout(y, height, n_tiles, half, strips.own)
     own_lo = own[:, 0].copy()
     own_hi = own[:, 1].copy()
     rows = hi - lo
@@ -763,47 +762,28 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
         stats = np.zeros((n_tiles, 4), np.int64)
     if work is None:
         work = np.zeros((threads, 3), np.int64)
-    # the large scratch (the strips' state, the per-event slots) is lent by the workspace: kept mapped
-    # between calls (:mod:`._workspace`); none of it outlives this block
+    # the strips' state lives as long as ``strips``, the per-event scratch as long as this block; both lent by
+    # the workspace, which keeps them mapped between calls (:mod:`._workspace`)
+    if strips.local is None:  # the strips' own state from now on: loaded from the caller's arrays once
+        strips.own, strips._layout = own, (lo, hi, own_lo, own_hi, off)
+        strips.local = [WORKSPACE.lease(off[-1] * (g.shape[2] // width), g.dtype, strips) for g in state]
+        for g, l in zip(state, strips.local):
+            _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
+        # the deferred events' counts per cell and row: zero before a call and, every queue drained, after it
+        strips.qcnt = WORKSPACE.lease(off[-1], np.int32, strips)
+        strips.qcnt.fill(0)
+        strips.qrow = np.zeros(roff[-1], np.int32)
+    else:  # a later chunk: only the halo rows, from the strips owning them (what a full copy would put there)
+        for g, l in zip(state, strips.local):
+            _halos_from_owners(l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width), planes, g.shape[2])
+    local = strips.local if reuse else [*strips.local, np.empty(0)]
     with WORKSPACE.scope() as take:
-        first = strips is None or strips.local is None
-        if strips is None:
-            local = [take.empty(off[-1] * (g.shape[2] // width), g.dtype) for g in state]
-        elif first:  # a stream's first call: its strips' own state from now on
-            local = [WORKSPACE.lease(off[-1] * (g.shape[2] // width), g.dtype, strips) for g in state]
-            strips.own, strips.local, strips._layout = own, local, (lo, hi, own_lo, own_hi, off)
-        else:
-            local = strips.local
-        if first:
-            for g, l in zip(state, local):
-                _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
-        else:
-            for g, l in zip(state, local):
-                _halos_from_owners(l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width), planes, g.shape[2])
-        local = list(local)
-        if not reuse:
-            local.append(np.empty(0))
         dec = take.zeros((2, x.shape[0]), np.int8)  # by the owner's parity (:func:`_run_strip`)
         # outputs per slot (each strip writes its own memory), then put in place
         slot_outs = [take.empty(idx.size, o.dtype) for o in outs]
-        # the deferred events' counts per cell and row: zero before a call and, every queue drained, after it
-        # (a stream keeps them: no O(sensor) clearing per chunk)
-        if strips is None:
-            qcnt, qrow = take.zeros(off[-1], np.int32), np.zeros(roff[-1], np.int32)
-        else:
-            if first:
-                strips.qcnt = WORKSPACE.lease(off[-1], np.int32, strips)
-                strips.qcnt.fill(0)
-                strips.qrow = np.zeros(roff[-1], np.int32)
-            qcnt, qrow = strips.qcnt, strips.qrow
         _intra_parallel(threads, np.iinfo(np.int64).max if threads == n_tiles else _TURN_EVENTS, x, y, t, p, g0,
-                        idx, starts, off, *local, qcnt, roff, qrow, np.empty(qoff[-1], np.int64), qoff, lo, rows,
-                        own_lo, own_hi, dec,
-                        take.empty((2, x.shape[0]), np.float64), width, height, tuple(kernel_args), *slot_outs,
-                        stats, work, par)
+                        idx, starts, off, *local, strips.qcnt, roff, strips.qrow, np.empty(qoff[-1], np.int64), qoff,
+                        lo, rows, own_lo, own_hi, dec, take.empty((2, x.shape[0]), np.float64), width, height,
+                        tuple(kernel_args), *slot_outs, stats, work, par)
         _put_owned(y, lo, hi, own_lo, own_hi, chunk_off, *slot_outs, *outs)
-        if strips is None:
-            for g, l in zip(state, local):
-                _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
-        else:
-            strips.stale = True
+    strips.stale = True

@@ -1199,7 +1199,7 @@ class IntraPixelLifetime:
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
             intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid),
-                        fits=self._prev_fit, strips=self._strips)
+                        strips=self._strips, fits=self._prev_fit)
         if self._fill is not None:  # serial, after the strips: the same bytes for any n_tiles
             self._fill._apply(x, y, t, p, lt, vx, vy, valid)
         self._n_seen += n
