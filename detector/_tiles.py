@@ -688,6 +688,12 @@ def _halos_from_owners(local, lo, hi, own_lo, own_hi, off, planes, rowlen):
             dst[:, r - lo[s], :] = src[:, r - lo[o], :]
 
 
+#: The initial value of each state array (SAE, previous time, lifetime, polarity, burst reuse's planes; a
+#: burst's count of fits, the third of each cell's three, starts at 0), as :class:`~evedge.detector.intra.
+#: IntraPixelLifetime` sets them.
+_INITIAL = (NEVER_US, 0, np.nan, -1, np.nan)
+
+
 class StripStates:
     """The strips' own state, kept between the calls of a stream (:class:`~evedge.detector.intra.IntraPixelLifetime`).
 
@@ -720,7 +726,7 @@ class StripStates:
 
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
                 strips: StripStates, stats: np.ndarray | None = None, work: np.ndarray | None = None,
-                fits: np.ndarray | None = None):
+                fits: np.ndarray | None = None, initial: bool = False):
     """The intra-pixel estimator over ``n_tiles`` strips; the serial result (module notes).
 
     ``state`` is ``(sae, prev_t, prev_lt, prev_pol)``, each ``(planes, height, width)``,
@@ -737,7 +743,9 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     ``fits`` (burst reuse, :func:`_intra_stream`; flat, ``_FIT_STRIDE`` per SAE cell; None or empty: off) is
     updated in place as ``state``; only owned pixels read or write it (halo events are not fitted).
     ``strips`` (the stream's :class:`StripStates`) keeps the strips' state between calls: ``state`` and ``fits``
-    are read on its first call only and written by :meth:`StripStates.store`.
+    are read on its first call only and written by :meth:`StripStates.store`. With ``initial`` the strips start
+    from the initial values (:data:`_INITIAL`) and ``state`` and ``fits`` only give shapes and types (zero-stride
+    views will do).
     """
     half = kernel_args[2]
     planes = state[0].shape[0]
@@ -767,8 +775,13 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     if strips.local is None:  # the strips' own state from now on: loaded from the caller's arrays once
         strips.own, strips._layout = own, (lo, hi, own_lo, own_hi, off)
         strips.local = [WORKSPACE.lease(off[-1] * (g.shape[2] // width), g.dtype, strips) for g in state]
-        for g, l in zip(state, strips.local):
-            _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
+        for g, l, v in zip(state, strips.local, _INITIAL):
+            if initial:
+                l.fill(v)
+            else:
+                _state_to_strips(g, l, lo, hi, off * (g.shape[2] // width))
+        if initial and reuse:
+            strips.local[4][2::_FIT_STRIDE] = 0.0  # each burst's count of fits (every strip's cells start at 3k)
         # the deferred events' counts per cell and row: zero before a call and, every queue drained, after it
         strips.qcnt = WORKSPACE.lease(off[-1], np.int32, strips)
         strips.qcnt.fill(0)

@@ -1096,7 +1096,7 @@ class IntraPixelLifetime:
         self.sensor_size = check_sensor_size(sensor_size)
         self.params = _check_params(params)
         self.n_tiles = check_n_tiles(n_tiles, self.sensor_size.height)
-        self._sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
+        self._sae: SurfaceOfActiveEvents | None = None  # with its burst arrays, made by reset() or, with strips, when read
         # the serial kernel's, reused by every chunk (the ring refit's quadratic needs a row of QUAD_SCRATCH)
         self._scratch = scratch_arrays(max(self.params.window_size**2, QUAD_SCRATCH if self.params.curvature_f else 0))
         pr = self.params  # the neighbour fill (off: None), run after the kernel on its output
@@ -1112,9 +1112,24 @@ class IntraPixelLifetime:
         return self._sae
 
     def _sync(self) -> None:
-        """The strips' state (kept between chunks, :class:`~evedge.detector._tiles.StripStates`) into the arrays."""
+        """The strips' state (kept between chunks, :class:`~evedge.detector._tiles.StripStates`) into the arrays,
+        made first if the stream has not needed them yet."""
+        if self._sae is None:
+            self._make_arrays()
         if self._strips is not None and self._strips.stale:
             self._strips.store(self._state(self._sae.times_us))
+        self._sae._last_time = self._last_time
+
+    def _make_arrays(self) -> None:
+        """The SAE and the burst arrays at their initial values (:meth:`reset`)."""
+        self._sae = SurfaceOfActiveEvents(self.sensor_size, per_polarity=self.params.per_polarity)
+        cells = self._sae.times_us.size
+        self._prev_t = np.zeros(cells, dtype=np.int64)
+        self._prev_lt = np.full(cells, np.nan)
+        self._prev_pol = np.full(cells, -1, dtype=np.int8)
+        # burst reuse: the plane (a, b) of each pixel's current burst (NaN = none) and its count of fits; empty = off
+        self._prev_fit = np.full(_FIT_STRIDE * cells if self.params.burst_reuse else 0, np.nan)
+        self._prev_fit[2::_FIT_STRIDE] = 0.0
 
     def _state(self, sae):
         """The state arrays as the strips take them: SAE, previous time, lifetime, polarity (and fits)."""
@@ -1126,15 +1141,12 @@ class IntraPixelLifetime:
 
     def reset(self) -> None:
         """Clear the SAE, the burst state and the neighbour fill's; restart the event counter of the random stream."""
-        self._sae.reset()
-        # with strips, their own state between chunks (made by the first chunk, from the arrays below)
+        # with strips, their own state between chunks, made by the first chunk at the initial values; the arrays
+        # (the SAE's, the burst state's) only when read (:meth:`_sync`): a one-shot call never makes them
         self._strips = StripStates() if self.n_tiles > 1 else None
-        self._prev_t = np.zeros(self._sae.times_us.size, dtype=np.int64)
-        self._prev_lt = np.full(self._sae.times_us.size, np.nan)
-        self._prev_pol = np.full(self._sae.times_us.size, -1, dtype=np.int8)
-        # burst reuse: the plane (a, b) of each pixel's current burst (NaN = none) and its count of fits; empty = off
-        self._prev_fit = np.full(_FIT_STRIDE * self._sae.times_us.size if self.params.burst_reuse else 0, np.nan)
-        self._prev_fit[2::_FIT_STRIDE] = 0.0
+        self._sae = None
+        if self._strips is None:
+            self._make_arrays()
         self._n_seen = 0
         self._last_time: int | None = None
         self._t_start: int | None = None  # the first event's time (start-up rule)
@@ -1188,14 +1200,22 @@ class IntraPixelLifetime:
                 pr.burst_reuse, pr.burst_warm_refit, pr.burst_reuse_inliers,  # burst reuse (then its plane array)
                 pr.refine_tolerance,  # the ring refit's threshold, after the plane array
                 off_as_none(pr.curvature_f))  # the ring refit's quadratic: off as None, not compiled
-        sae = self._sae.times_us
         if self.n_tiles == 1:
+            sae = self._sae.times_us
             burst, per_pol, half = args[:3]
             _intra_stream(x, y, t, p, np.arange(n), 0, self._n_seen, sae.reshape(-1), self._prev_t, self._prev_lt,
                           self._prev_pol, burst, w, h, 0, h, 0, h, _NO_HALO, _NO_HALO_LT, per_pol, half,
                           *args[3:_N_ARGS], lt, vx, vy, valid, *self._scratch, *args[_N_ARGS:-2], self._prev_fit,
                           *args[-2:])
-        else:
+        elif self._sae is None:  # no array read since the reset: the strips (if new) start from the initial values
+            shape = (2 if self.params.per_polarity else 1, h, w)
+            like = tuple(np.broadcast_to(np.zeros((), d), shape) for d in (np.int64, np.int64, np.float64, np.int8))
+            fits = (np.broadcast_to(np.zeros(()), (*shape[:2], _FIT_STRIDE * w)) if self.params.burst_reuse
+                    else np.empty(0))
+            intra_tiled(x, y, t, p, self._n_seen, like, w, h, self.n_tiles, args, (lt, vx, vy, valid),
+                        strips=self._strips, fits=fits, initial=True)
+        else:  # (the arrays were read: the strips, if new, start from them)
+            sae = self._sae.times_us
             state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
                      self._prev_pol.reshape(sae.shape))
             intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid),
@@ -1204,7 +1224,8 @@ class IntraPixelLifetime:
             self._fill._apply(x, y, t, p, lt, vx, vy, valid)
         self._n_seen += n
         self._last_time = int(t[-1])
-        self._sae._last_time = self._last_time
+        if self._sae is not None and self._strips is None:
+            self._sae._last_time = self._last_time
         return lt, vx, vy, valid
 
 
