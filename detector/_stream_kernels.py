@@ -119,19 +119,31 @@ def _columns_chunk(events, cols, lo, hi):
 def _record_columns(events):
     """The events' x, y, t, p as a (4, n) int64 array (its rows: the estimator's columns), in one pass."""
     cols = np.empty((4, events.shape[0]), np.int64)
+    _record_columns_into(events, cols)
+    return cols
+
+
+@njit(cache=True)
+def _record_columns_into(events, cols):
+    """:func:`_record_columns` written into ``cols`` ((4, n) int64)."""
     _columns_chunk(events, cols, 0, events.shape[0])
+
+
+@njit(cache=True)
+def _record_columns_par(events):
+    """:func:`_record_columns` over chunks of events in parallel: the same array."""
+    cols = np.empty((4, events.shape[0]), np.int64)
+    _record_columns_par_into(events, cols)
     return cols
 
 
 @njit(parallel=True, cache=True)
-def _record_columns_par(events):
-    """:func:`_record_columns` over chunks of events in parallel: the same array."""
+def _record_columns_par_into(events, cols):
+    """:func:`_record_columns_par` written into ``cols`` ((4, n) int64)."""
     n = events.shape[0]
-    cols = np.empty((4, n), np.int64)
     for c in prange(n_chunks(n)):
         lo, hi = chunk_bounds(c, n)
         _columns_chunk(events, cols, lo, hi)
-    return cols
 
 
 @njit(cache=True, inline="always")
@@ -151,20 +163,33 @@ def _lifetime_columns(lifetimes):
     n = lifetimes.shape[0]
     cols = np.empty((3, n))
     valid = np.empty(n, np.bool_)
-    _lifetime_chunk(lifetimes, cols, valid, 0, n)
+    _lifetime_columns_into(lifetimes, cols, valid)
     return cols, valid
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True)
+def _lifetime_columns_into(lifetimes, cols, valid):
+    """:func:`_lifetime_columns` written into ``cols`` ((3, n) float64) and ``valid`` (n bool)."""
+    _lifetime_chunk(lifetimes, cols, valid, 0, lifetimes.shape[0])
+
+
+@njit(cache=True)
 def _lifetime_columns_par(lifetimes):
     """:func:`_lifetime_columns` over chunks in parallel: the same arrays."""
     n = lifetimes.shape[0]
     cols = np.empty((3, n))
     valid = np.empty(n, np.bool_)
+    _lifetime_columns_par_into(lifetimes, cols, valid)
+    return cols, valid
+
+
+@njit(parallel=True, cache=True)
+def _lifetime_columns_par_into(lifetimes, cols, valid):
+    """:func:`_lifetime_columns_par` written into ``cols`` and ``valid``."""
+    n = lifetimes.shape[0]
     for c in prange(n_chunks(n)):
         lo, hi = chunk_bounds(c, n)
         _lifetime_chunk(lifetimes, cols, valid, lo, hi)
-    return cols, valid
 
 
 @njit(cache=True)
@@ -223,7 +248,7 @@ def _kept_offsets(kept):
     return np.cumsum(cnt)
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True)
 def _kept_columns_par(events, kept, off):
     """:func:`_kept_columns` over chunks in parallel (``off`` from :func:`_kept_offsets`): the same array."""
     cols = np.empty((4, off[-1]), np.int64)

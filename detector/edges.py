@@ -38,8 +38,10 @@ import numpy as np
 from ._checks import (NEVER_US, check_events, check_lifetimes, check_not_before, check_positive, check_sensor_size,
                       columns)
 from ._edges_kernels import _DX, _DY, _edge_update
-from ._stream_kernels import _lifetime_columns, _lifetime_columns_par, _record_columns, _record_columns_par
+from ._stream_kernels import (_lifetime_columns_into, _lifetime_columns_par_into, _record_columns_into,
+                              _record_columns_par_into)
 from ._tiles import check_n_tiles, edge_frames_tiled
+from ._workspace import WORKSPACE
 
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -210,30 +212,36 @@ def edge_frames(events: np.ndarray, lifetimes: np.ndarray, sensor_size, times_us
     image = EdgeImage(sensor_size, clear_behind=clear_behind, invalid=invalid, burst_lifetimes=burst_lifetimes,
                       display=display)
     order = np.argsort(times, kind="stable")
-    if n_tiles > 1 and times.size and events.size:
-        # the events' and the lifetimes' columns over chunks in parallel (the same arrays as columns())
-        x, y, t, p = _record_columns_par(events)
-        (lt, vx, vy), valid = _lifetime_columns_par(lifetimes)
-        # the instants as the serial comparisons see them (int64 / float64 against the int64 times)
-        sorted_t = times[order].astype(np.float64 if times.dtype.kind == "f" or times.max() > _INT64_MAX
-                                       else np.int64)
-        edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, sensor_size.width, sensor_size.height,
-                          image.clear_behind, image.invalid == "clear", image.burst_lifetimes, sorted_t, order,
-                          n_tiles, out)
-        return out
     if not times.size:
         return out
-    # the checked events' and lifetimes' columns once (one pass over each record array), then slices of them
-    # (contiguous) per frame; each frame rendered into its own memory (the image_at comparisons, no temporaries)
-    (lt, vx, vy), valid = _lifetime_columns(lifetimes)
-    cols = (*_record_columns(events), lt, vx, vy, valid)
-    ends = np.searchsorted(cols[2], times[order], side="right")  # the contiguous time column, not the field
-    scratch = np.empty(sensor_size.width * sensor_size.height, dtype=bool)
-    flat = out.reshape(times.size, -1)
-    start = 0
-    for i, end in zip(order, ends):
-        if end > start:
-            image._apply(*(c[start:end] for c in cols))
-            start = end
-        image._render(times[i], flat[i], scratch)
+    # the checked events' and lifetimes' columns once (one pass over each record array; with strips over chunks
+    # in parallel), as scratch the workspace keeps mapped between calls (:mod:`._workspace`)
+    n = events.shape[0]
+    par = n_tiles > 1 and n > 0
+    with WORKSPACE.scope() as take:
+        ev_cols, lt_cols, valid = take.empty((4, n), np.int64), take.empty((3, n), np.float64), take.empty(n, bool)
+        (_record_columns_par_into if par else _record_columns_into)(events, ev_cols)
+        (_lifetime_columns_par_into if par else _lifetime_columns_into)(lifetimes, lt_cols, valid)
+        x, y, t, p = ev_cols
+        lt, vx, vy = lt_cols
+        if par:
+            # the instants as the serial comparisons see them (int64 / float64 against the int64 times)
+            sorted_t = times[order].astype(np.float64 if times.dtype.kind == "f" or times.max() > _INT64_MAX
+                                           else np.int64)
+            edge_frames_tiled(x, y, t, lt, vx, vy, valid, p, sensor_size.width, sensor_size.height,
+                              image.clear_behind, image.invalid == "clear", image.burst_lifetimes, sorted_t, order,
+                              n_tiles, out)
+            return out
+        # slices of the columns (contiguous) per frame; each frame rendered into its own memory (the image_at
+        # comparisons, no temporaries)
+        cols = (x, y, t, p, lt, vx, vy, valid)
+        ends = np.searchsorted(t, times[order], side="right")  # the contiguous time column, not the field
+        scratch = np.empty(sensor_size.width * sensor_size.height, dtype=bool)
+        flat = out.reshape(times.size, -1)
+        start = 0
+        for i, end in zip(order, ends):
+            if end > start:
+                image._apply(*(c[start:end] for c in cols))
+                start = end
+            image._render(times[i], flat[i], scratch)
     return out

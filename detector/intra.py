@@ -652,8 +652,9 @@ from ._checks import check_events, check_not_before, check_sensor_size
 from ._intra_kernels import (_FIT_STRIDE, _NEVER, QUAD_SCRATCH, _fit_windows, _intra_stream, off_as_none,
                              scratch_arrays)
 from ._noise_kernels import _AGREE, _BURST_SPAN, _NEWER, _PASSAGE_GAP, N_NOISE
-from ._stream_kernels import _pack_lifetimes, _record_columns, _record_columns_par
+from ._stream_kernels import _pack_lifetimes, _record_columns_into, _record_columns_par_into
 from ._tiles import StripStates, check_n_tiles, intra_tiled
+from ._workspace import WORKSPACE
 from .fill import ARRIVAL, NeighbourFill, check_fill
 from .result import LIFETIME_DTYPE, empty_lifetimes
 from .protocols import METHODS
@@ -1161,9 +1162,12 @@ class IntraPixelLifetime:
         if n == 0:
             return empty_lifetimes(0)
         out = np.empty(n, dtype=LIFETIME_DTYPE)  # every field is set below
-        # the columns and the records out in one numba pass each (with strips: the columns over chunks in parallel)
-        cols = _record_columns_par(events) if self.n_tiles > 1 else _record_columns(events)
-        _pack_lifetimes(*self._estimate(*cols), out)
+        # the columns and the records out in one numba pass each (with strips: the columns over chunks in
+        # parallel); the columns are scratch the workspace keeps mapped between calls (:mod:`._workspace`)
+        with WORKSPACE.scope() as take:
+            cols = take.empty((4, n), np.int64)
+            (_record_columns_par_into if self.n_tiles > 1 else _record_columns_into)(events, cols)
+            _pack_lifetimes(*self._estimate(*cols), out)
         return out
 
     def _estimate(self, x, y, t, p):
