@@ -34,7 +34,7 @@ import numpy as np
 MIN_BYTES = 1 << 20
 
 #: Most bytes kept between calls; beyond it the largest unused buffers are dropped.
-MAX_CACHED_BYTES = 1 << 30
+MAX_CACHED_BYTES = 1 << 29
 
 
 def _request(shape, dtype):
