@@ -116,30 +116,14 @@ def _columns_chunk(events, cols, lo, hi):
 
 
 @njit(cache=True)
-def _record_columns(events):
-    """The events' x, y, t, p as a (4, n) int64 array (its rows: the estimator's columns), in one pass."""
-    cols = np.empty((4, events.shape[0]), np.int64)
-    _record_columns_into(events, cols)
-    return cols
-
-
-@njit(cache=True)
 def _record_columns_into(events, cols):
-    """:func:`_record_columns` written into ``cols`` ((4, n) int64)."""
+    """The events' x, y, t, p into ``cols`` ((4, n) int64: its rows are the estimator's columns), in one pass."""
     _columns_chunk(events, cols, 0, events.shape[0])
-
-
-@njit(cache=True)
-def _record_columns_par(events):
-    """:func:`_record_columns` over chunks of events in parallel: the same array."""
-    cols = np.empty((4, events.shape[0]), np.int64)
-    _record_columns_par_into(events, cols)
-    return cols
 
 
 @njit(parallel=True, cache=True)
 def _record_columns_par_into(events, cols):
-    """:func:`_record_columns_par` written into ``cols`` ((4, n) int64)."""
+    """:func:`_record_columns_into` over chunks of events in parallel: the same array."""
     n = events.shape[0]
     for c in prange(n_chunks(n)):
         lo, hi = chunk_bounds(c, n)
@@ -158,34 +142,14 @@ def _lifetime_chunk(lifetimes, cols, valid, lo, hi):
 
 
 @njit(cache=True)
-def _lifetime_columns(lifetimes):
-    """A LIFETIME_DTYPE array's lifetime, vx, vy as a (3, n) float64 array and valid as bool, in one pass."""
-    n = lifetimes.shape[0]
-    cols = np.empty((3, n))
-    valid = np.empty(n, np.bool_)
-    _lifetime_columns_into(lifetimes, cols, valid)
-    return cols, valid
-
-
-@njit(cache=True)
 def _lifetime_columns_into(lifetimes, cols, valid):
-    """:func:`_lifetime_columns` written into ``cols`` ((3, n) float64) and ``valid`` (n bool)."""
+    """A LIFETIME_DTYPE array's lifetime, vx, vy into ``cols`` ((3, n) float64) and valid into ``valid``."""
     _lifetime_chunk(lifetimes, cols, valid, 0, lifetimes.shape[0])
-
-
-@njit(cache=True)
-def _lifetime_columns_par(lifetimes):
-    """:func:`_lifetime_columns` over chunks in parallel: the same arrays."""
-    n = lifetimes.shape[0]
-    cols = np.empty((3, n))
-    valid = np.empty(n, np.bool_)
-    _lifetime_columns_par_into(lifetimes, cols, valid)
-    return cols, valid
 
 
 @njit(parallel=True, cache=True)
 def _lifetime_columns_par_into(lifetimes, cols, valid):
-    """:func:`_lifetime_columns_par` written into ``cols`` and ``valid``."""
+    """:func:`_lifetime_columns_into` over chunks in parallel: the same arrays."""
     n = lifetimes.shape[0]
     for c in prange(n_chunks(n)):
         lo, hi = chunk_bounds(c, n)

@@ -714,14 +714,22 @@ class StripStates:
         self.qcnt: np.ndarray | None = None  # deferred events per cell and per row (zero between calls)
         self.qrow: np.ndarray | None = None
 
-    def store(self, state) -> None:
-        """The strips' owned rows into ``state`` (the arrays :func:`intra_tiled` was given, fits last)."""
+    def store(self, state, fits: np.ndarray) -> None:
+        """The strips' owned rows into ``state`` and ``fits`` (as :func:`intra_tiled` takes them)."""
         if self.stale:
             lo, hi, own_lo, own_hi, off = self._layout
             width = state[0].shape[2]
-            for g, l in zip(state, self.local):
+            for g, l in zip(_with_fits(state, fits), self.local):
                 _strips_to_state(g, l, lo, hi, own_lo, own_hi, off * (g.shape[2] // width))
             self.stale = False
+
+
+def _with_fits(state, fits):
+    """``state`` and, with burst reuse (``fits`` not empty), ``fits`` as a fifth ``(planes, height, cells)`` array."""
+    if fits is None or fits.size == 0:
+        return tuple(state)
+    planes, height, width = state[0].shape
+    return (*state, fits.reshape(planes, height, _FIT_STRIDE * width))
 
 
 def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: int, kernel_args: tuple, outs: tuple,
@@ -759,9 +767,8 @@ def intra_tiled(x, y, t, p, g0: int, state, width: int, height: int, n_tiles: in
     roff[1:] = np.cumsum(planes * rows)
     qoff = np.zeros(n_tiles + 1, np.int64)
     qoff[1:] = np.cumsum(np.full(n_tiles, 1 << max(int(_QUEUE_MAX) - 1, 1).bit_length()))
-    reuse = fits is not None and fits.size > 0
-    if reuse:
-        state = (*state, fits.reshape(planes, height, _FIT_STRIDE * width))
+    state = _with_fits(state, fits)
+    reuse = len(state) == 5
     par = np.zeros(height, np.int64)
     for s in range(n_tiles):
         par[own_lo[s]:own_hi[s]] = s % 2

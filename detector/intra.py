@@ -1118,7 +1118,7 @@ class IntraPixelLifetime:
         if self._sae is None:
             self._make_arrays()
         if self._strips is not None and self._strips.stale:
-            self._strips.store(self._state(self._sae.times_us))
+            self._strips.store(self._state(), self._prev_fit)
         self._sae._last_time = self._last_time
 
     def _make_arrays(self) -> None:
@@ -1132,13 +1132,12 @@ class IntraPixelLifetime:
         self._prev_fit = np.full(_FIT_STRIDE * cells if self.params.burst_reuse else 0, np.nan)
         self._prev_fit[2::_FIT_STRIDE] = 0.0
 
-    def _state(self, sae):
-        """The state arrays as the strips take them: SAE, previous time, lifetime, polarity (and fits)."""
-        state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
-                 self._prev_pol.reshape(sae.shape))
-        if self._prev_fit.size:
-            state = (*state, self._prev_fit.reshape(sae.shape[0], sae.shape[1], -1))
-        return state
+    def _state(self):
+        """The state arrays as the strips take them, ``(planes, height, width)`` each: SAE, previous time, lifetime
+        and polarity."""
+        sae = self._sae.times_us
+        return (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
+                self._prev_pol.reshape(sae.shape))
 
     def reset(self) -> None:
         """Clear the SAE, the burst state and the neighbour fill's; restart the event counter of the random stream."""
@@ -1219,16 +1218,13 @@ class IntraPixelLifetime:
             intra_tiled(x, y, t, p, self._n_seen, like, w, h, self.n_tiles, args, (lt, vx, vy, valid),
                         strips=self._strips, fits=fits, initial=True)
         else:  # (the arrays were read: the strips, if new, start from them)
-            sae = self._sae.times_us
-            state = (sae, self._prev_t.reshape(sae.shape), self._prev_lt.reshape(sae.shape),
-                     self._prev_pol.reshape(sae.shape))
-            intra_tiled(x, y, t, p, self._n_seen, state, w, h, self.n_tiles, args, (lt, vx, vy, valid),
+            intra_tiled(x, y, t, p, self._n_seen, self._state(), w, h, self.n_tiles, args, (lt, vx, vy, valid),
                         strips=self._strips, fits=self._prev_fit)
         if self._fill is not None:  # serial, after the strips: the same bytes for any n_tiles
             self._fill._apply(x, y, t, p, lt, vx, vy, valid)
         self._n_seen += n
         self._last_time = int(t[-1])
-        if self._sae is not None and self._strips is None:
+        if self._strips is None:  # (with strips: set when the arrays are read, :meth:`_sync`)
             self._sae._last_time = self._last_time
         return lt, vx, vy, valid
 

@@ -315,8 +315,9 @@ def test_kept_columns_and_expansion_in_parallel_chunks():
     serial arrays: masks keeping all, none, or some, over more than one chunk and a partial last one."""
     from evedge.detector._chunks import CHUNK_EVENTS as _CHUNK
     from evedge.detector._stream_kernels import (_expand_lifetimes, _expand_lifetimes_par, _kept_columns,
-                                                 _kept_columns_par, _kept_offsets, _lifetime_columns_par,
-                                                 _record_columns, _record_columns_par)
+                                                 _kept_columns_par, _kept_offsets, _lifetime_columns_into,
+                                                 _lifetime_columns_par_into, _record_columns_into,
+                                                 _record_columns_par_into)
     from evedge.detector.result import LIFETIME_DTYPE
 
     rng = np.random.default_rng(4)
@@ -325,7 +326,10 @@ def test_kept_columns_and_expansion_in_parallel_chunks():
                      rng.random(n) < 0.5)
     for e in (ev, ev[::3]):  # all the events' columns (the estimator's process), also of a strided view
         want = np.stack([e[f].astype(np.int64) for f in ("x", "y", "t", "p")])
-        assert np.array_equal(_record_columns(e), want) and np.array_equal(_record_columns_par(e), want)
+        serial, par = np.empty((4, e.size), np.int64), np.empty((4, e.size), np.int64)
+        _record_columns_into(e, serial)
+        _record_columns_par_into(e, par)
+        assert np.array_equal(serial, want) and np.array_equal(par, want)
     for kept in (rng.random(n) < 0.3, np.ones(n, bool), np.zeros(n, bool), np.arange(n) >= n - 7):
         off = _kept_offsets(kept)
         assert off.shape == (4 + 1,) and off[-1] == kept.sum()
@@ -341,6 +345,9 @@ def test_kept_columns_and_expansion_in_parallel_chunks():
         _expand_lifetimes_par(kept, lt, vx, vy, valid, b, off)
         assert a.tobytes() == b.tobytes()
         assert np.array_equal(a["lifetime_us"][kept], lt) and np.isnan(a["lifetime_us"][~kept]).all()
-        cols, got_valid = _lifetime_columns_par(a)  # and back to columns (the edge frames' strips)
-        assert np.array_equal(cols, np.stack([a[f] for f in ("lifetime_us", "vx_px_s", "vy_px_s")]), equal_nan=True)
-        assert np.array_equal(got_valid, a["valid"])
+        for into in (_lifetime_columns_into, _lifetime_columns_par_into):  # and back to columns (the edge frames)
+            cols, got_valid = np.empty((3, n)), np.empty(n, bool)
+            into(a, cols, got_valid)
+            assert np.array_equal(cols, np.stack([a[f] for f in ("lifetime_us", "vx_px_s", "vy_px_s")]),
+                                  equal_nan=True)
+            assert np.array_equal(got_valid, a["valid"])
