@@ -26,6 +26,16 @@ without, as its original). Per cell and method, :func:`score` gives:
                 at times can tell them from the edge's own events, and a
                 method that estimates the edge's events gives these a lifetime
                 too; the same for every method, a property of the cell;
+``noise_after`` share of the noise events within half a lifetime *after* such a
+                passage (part of the floor: they fire while the edge's burst at
+                their pixel runs, as its own later events do);
+``noise_in_floor``  share of the floor's noise events given a lifetime (``noise_in_after``:
+                of those after the passage), and
+``noise_off_floor`` share of the other noise events given one: the noise measure
+                is ``floor * noise_in_floor + (1 - floor) * noise_off_floor``; a
+                method that estimates a share ``c`` of the signal gives the floor's
+                events a lifetime at about that rate (they sit in its bursts), so
+                its noise measure is at least about ``c * floor`` whatever its rules;
 ``first``       median |relative error| over the first 0.1 s (start-up, apart).
 
 :func:`run_grid` runs the cells as tasks on the project's Dask glue
@@ -53,7 +63,8 @@ PERIOD_PX = 20.0
 #: Noise events within this many truth lifetimes of a same-pixel, same-polarity signal event count as the floor.
 FLOOR_LIFETIMES = 0.5
 #: The per-cell figures of :func:`score`, in order.
-FIGURES = ("med", "over2x", "sig", "noise", "noise_floor", "first")
+FIGURES = ("med", "over2x", "sig", "noise", "noise_floor", "noise_after", "noise_in_floor", "noise_in_after",
+           "noise_off_floor", "first")
 
 
 def _dark_for(r: float) -> float:
@@ -150,7 +161,7 @@ def cells(quick: bool) -> list[tuple[str, dict]]:
     return out
 
 
-def _signal_distance(events, truth) -> np.ndarray:
+def _signal_distance(events, truth, *, after_only: bool = False) -> np.ndarray:
     """Per event: time to the edge's passage at its pixel (same polarity), in lifetimes of that edge; ``inf``: none.
 
     The passage is known from every signal event of the same polarity at the
@@ -159,7 +170,8 @@ def _signal_distance(events, truth) -> np.ndarray:
     ``t_s + (q - s) . v / |v|^2`` (at ``s`` itself: ``t_s``). The distance is
     ``|t - t_pass| / lifetime_s`` for the passages just before and just after
     ``t`` (a pixel that skipped the passage, low contrast, still saw the edge
-    go by).
+    go by); with ``after_only``, to the passage just before ``t`` only (the
+    event fired while the edge's burst at its pixel may still run).
     """
     n = events.shape[0]
     out = np.full(n, np.inf)
@@ -194,8 +206,13 @@ def _signal_distance(events, truth) -> np.ndarray:
     if np.abs(st).max() >= 5e7 or np.abs(t).max() >= 5e7:
         raise ValueError("_signal_distance: recordings longer than 50 s are not supported")
     comb = sk * 1e8 + st
-    pos = np.searchsorted(comb, key * 1e8 + t)
-    for j in (pos - 1, pos):  # the passages just before and after the event
+    if after_only:  # the latest passage at or before the event
+        pos = np.searchsorted(comb, key * 1e8 + t, side="right")
+        sides = (pos - 1,)
+    else:  # the passages just before and after the event
+        pos = np.searchsorted(comb, key * 1e8 + t)
+        sides = (pos - 1, pos)
+    for j in sides:
         jj = np.clip(j, 0, sk.size - 1)
         d = np.where((j >= 0) & (j < sk.size) & (sk[jj] == key), np.abs(st[jj] - t) / sl[jj], np.inf)
         out = np.minimum(out, d)
@@ -216,8 +233,8 @@ def score(rec, lifetimes) -> dict:
     >>> lt = empty_lifetimes(4)  # the noise event (0.3 lifetimes after a signal event at its pixel) estimated
     >>> lt["valid"], lt["lifetime_us"] = [False, True, False, True], [np.nan, 1500.0, np.nan, 900.0]
     >>> s = score(SimpleNamespace(events=ev, truth=truth), lt)
-    >>> s["med"], s["sig"], s["noise"], s["noise_floor"]
-    (0.5, 0.5, 1.0, 1.0)
+    >>> s["med"], s["sig"], s["noise"], s["noise_floor"], s["noise_in_floor"], s["noise_off_floor"]
+    (0.5, 0.5, 1.0, 1.0, 1.0, nan)
     """
     t = rec.events["t"]
     sig = rec.truth["is_signal"]
@@ -235,10 +252,16 @@ def score(rec, lifetimes) -> dict:
     out["sig"] = float(valid[m].mean()) if m.any() else math.nan
     noise = ~sig
     out["noise"] = float(valid[noise].mean()) if noise.any() else math.nan
+    for key in ("noise_floor", "noise_after", "noise_in_floor", "noise_in_after", "noise_off_floor"):
+        out[key] = math.nan
     if noise.any():
-        out["noise_floor"] = float(np.mean(_signal_distance(rec.events, rec.truth)[noise] <= FLOOR_LIFETIMES))
-    else:
-        out["noise_floor"] = math.nan
+        in_floor = _signal_distance(rec.events, rec.truth) <= FLOOR_LIFETIMES
+        in_after = _signal_distance(rec.events, rec.truth, after_only=True) <= FLOOR_LIFETIMES
+        out["noise_floor"] = float(np.mean(in_floor[noise]))
+        out["noise_after"] = float(np.mean(in_after[noise]))
+        for key, sel in (("noise_in_floor", noise & in_floor), ("noise_in_after", noise & in_after),
+                         ("noise_off_floor", noise & ~in_floor)):
+            out[key] = float(valid[sel].mean()) if sel.any() else math.nan
     first = ok & ~steady & valid
     r0 = est[first] / truth[first]
     out["first"] = float(np.median(np.abs(r0 - 1))) if r0.size else math.nan

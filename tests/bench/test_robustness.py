@@ -35,6 +35,12 @@ def test_signal_distance_predicts_the_passage_from_a_neighbour():
     dtype = [("is_signal", bool), ("lifetime_us", float), ("vx_px_s", float), ("vy_px_s", float)]
     truth = np.array([(True, 1000.0, 1000.0, 0.0)] + [(False, np.nan, np.nan, np.nan)] * 3, dtype=dtype)
     np.testing.assert_allclose(_signal_distance(ev, truth), [0.0, 0.3, 2.0, math.inf])
+    # after the passage only: the event at x=1, 1300 us, is 0.3 lifetimes after the edge reached x=1; one at 700 us
+    # (before it) is 0.3 lifetimes off both ways, but no passage precedes it
+    ev2 = make_events(np.array([0, 1, 1]), np.zeros(3), np.array([0, 1300, 700]), np.ones(3, bool))
+    truth2 = truth[:3]
+    np.testing.assert_allclose(_signal_distance(ev2, truth2, after_only=True), [0.0, 0.3, math.inf])
+    np.testing.assert_allclose(_signal_distance(ev2, truth2), [0.0, 0.3, 0.3])
 
 
 def test_score_known_answer():
@@ -50,6 +56,8 @@ def test_score_known_answer():
     assert s["sig"] == pytest.approx(3 / 4)
     assert s["noise"] == pytest.approx(1 / 2)
     assert s["noise_floor"] == pytest.approx(1 / 2)  # the noise event at x=1, 0.4 lifetimes after the signal
+    assert s["noise_in_floor"] == 1.0 and s["noise_off_floor"] == 0.0  # that one estimated, the one at x=5 not
+    assert s["noise_after"] == pytest.approx(1 / 2) and s["noise_in_after"] == 1.0  # it fired after the passage
     assert s["first"] == pytest.approx(0.5)
     assert (s["n_signal"], s["n_noise"]) == (4, 2)
 
