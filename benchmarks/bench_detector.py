@@ -218,12 +218,15 @@ def bench(name, events, size, repeat, tiles, params, gen4=False):
     lifetimes = estimate_lifetimes(sub, size, params)
     frame_t = np.arange(int(events["t"][0]), int(events["t"][-1]), 10_000)
     plain = dataclasses.replace(params, burst_reuse=0)  # the bound's work: every event fitted
+    one_trial = dataclasses.replace(params, max_trials=1)  # the least RANSAC work a fit can do
     rows = [
         ("buffer (filter_events)", n, lambda: filter_events(events, size)),
         ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size, params)),
         ("  bound: tight reference kernel (kept events)", sub.size, lambda: bound_lifetimes(sub, size.width,
                                                                                           size.height)),
         ("  the estimator with burst_reuse=0 (kept events)", sub.size, lambda: estimate_lifetimes(sub, size, plain)),
+        ("  the estimator with max_trials=1 (kept events)", sub.size,
+         lambda: estimate_lifetimes(sub, size, one_trial)),
     ] if not gen4 else [
         ("buffer (filter_events)", n, lambda: filter_events(events, size)),
         ("SAE + 2-means + RANSAC (kept events)", sub.size, lambda: estimate_lifetimes(sub, size, params)),
@@ -274,6 +277,16 @@ def bench(name, events, size, repeat, tiles, params, gen4=False):
     print(f"kept by buffer {kept.mean():.3f}; with estimate (of kept) {lifetimes['valid'].mean():.3f}")
     print(f"per core, full pipeline + edge image: {rate[full] / 1e6:.2f} M events/s (CPU time); "
           f"target 3.5 M: ratio {rate[full] / 3.5e6:.2f}")
+    if not gen4:
+        # the least the estimator can cost with RANSAC at all (one trial per fit; estimates change): what is left of
+        # a 3.5 M events/s budget per core after this run's buffer and edge frames, per kept event
+        one = rows[4][0]
+        rest_ns = 1e9 / rate[label["buffer"]] + kept.mean() * 1e9 / rate[label["edges"]]
+        budget = (1e9 / 3.5e6 - rest_ns) / kept.mean()
+        print(f"  one RANSAC trial per fit (max_trials=1): the estimator {1e9 / rate[one]:.0f} ns per kept event "
+              f"(defaults {1e9 / rate[est]:.0f}); 3.5 M events/s per core leaves it {budget:.0f} ns per kept event "
+              f"after this run's buffer and edge frames ({rest_ns:.0f} ns/event): one trial / budget "
+              f"{1e9 / rate[one] / budget:.2f}")
     if tiles > 1:
         bench_tiles(events, size, repeat, tiles, sub, rate[full], sub.size / rate[label["edges"]] / n,
                     n / rate[label["buffer"]], frame_t, params)
