@@ -164,21 +164,31 @@ def cells(quick: bool) -> list[tuple[str, dict]]:
 def _signal_distance(events, truth, *, after_only: bool = False) -> np.ndarray:
     """Per event: time to the edge's passage at its pixel (same polarity), in lifetimes of that edge; ``inf``: none.
 
+    One of :func:`_passage_distances`' two arrays (``after_only``: the second).
+    """
+    return _passage_distances(events, truth)[1 if after_only else 0]
+
+
+def _passage_distances(events, truth) -> tuple[np.ndarray, np.ndarray]:
+    """Per event, in lifetimes of the edge: the distance to the nearest passage at its pixel, and to the latest one at
+    or before it (``inf``: none), from one pass over the signal events.
+
     The passage is known from every signal event of the same polarity at the
     pixel or one of its 8 neighbours: a signal event at pixel ``s``, time
     ``t_s``, normal flow ``v`` (truth) puts the edge at pixel ``q`` at
     ``t_s + (q - s) . v / |v|^2`` (at ``s`` itself: ``t_s``). The distance is
     ``|t - t_pass| / lifetime_s`` for the passages just before and just after
     ``t`` (a pixel that skipped the passage, low contrast, still saw the edge
-    go by); with ``after_only``, to the passage just before ``t`` only (the
+    go by); the second array, to the passage at or before ``t`` only (the
     event fired while the edge's burst at its pixel may still run).
     """
     n = events.shape[0]
-    out = np.full(n, np.inf)
+    nearest = np.full(n, np.inf)
+    after = np.full(n, np.inf)
     lt = truth["lifetime_us"]
     sig = truth["is_signal"] & np.isfinite(lt) & (lt > 0)
     if n == 0 or not sig.any():
-        return out
+        return nearest, after
     vx = np.nan_to_num(truth["vx_px_s"][sig]) if "vx_px_s" in truth.dtype.names else np.zeros(sig.sum())
     vy = np.nan_to_num(truth["vy_px_s"][sig]) if "vy_px_s" in truth.dtype.names else np.zeros(sig.sum())
     v2 = vx * vx + vy * vy
@@ -206,17 +216,15 @@ def _signal_distance(events, truth, *, after_only: bool = False) -> np.ndarray:
     if np.abs(st).max() >= 5e7 or np.abs(t).max() >= 5e7:
         raise ValueError("_signal_distance: recordings longer than 50 s are not supported")
     comb = sk * 1e8 + st
-    if after_only:  # the latest passage at or before the event
-        pos = np.searchsorted(comb, key * 1e8 + t, side="right")
-        sides = (pos - 1,)
-    else:  # the passages just before and after the event
-        pos = np.searchsorted(comb, key * 1e8 + t)
-        sides = (pos - 1, pos)
-    for j in sides:
+
+    def dist(j):  # to the passage at sorted position j (inf: none there, or another pixel's)
         jj = np.clip(j, 0, sk.size - 1)
-        d = np.where((j >= 0) & (j < sk.size) & (sk[jj] == key), np.abs(st[jj] - t) / sl[jj], np.inf)
-        out = np.minimum(out, d)
-    return out
+        return np.where((j >= 0) & (j < sk.size) & (sk[jj] == key), np.abs(st[jj] - t) / sl[jj], np.inf)
+
+    pos = np.searchsorted(comb, key * 1e8 + t)
+    nearest = np.minimum(dist(pos - 1), dist(pos))  # the passages just before and after the event
+    after = dist(np.searchsorted(comb, key * 1e8 + t, side="right") - 1)  # the latest at or before it
+    return nearest, after
 
 
 def score(rec, lifetimes) -> dict:
@@ -255,8 +263,7 @@ def score(rec, lifetimes) -> dict:
     for key in ("noise_floor", "noise_after", "noise_in_floor", "noise_in_after", "noise_off_floor"):
         out[key] = math.nan
     if noise.any():
-        in_floor = _signal_distance(rec.events, rec.truth) <= FLOOR_LIFETIMES
-        in_after = _signal_distance(rec.events, rec.truth, after_only=True) <= FLOOR_LIFETIMES
+        in_floor, in_after = (d <= FLOOR_LIFETIMES for d in _passage_distances(rec.events, rec.truth))
         out["noise_floor"] = float(np.mean(in_floor[noise]))
         out["noise_after"] = float(np.mean(in_after[noise]))
         for key, sel in (("noise_in_floor", noise & in_floor), ("noise_in_after", noise & in_after),
